@@ -1,0 +1,166 @@
+"""All checks of user input, in one place.
+
+Each check raises :class:`direct.SceneError` (or :class:`direct.SceneFileError`
+for the file format) with a message that names the component and the vertex at
+fault and says what to do.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from .errors import SceneError, SceneFileError
+
+_KEYS = {"name", "closed", "reference", "deformed"}
+
+
+def _label(name: str) -> str:
+    return f"component {name!r}" if name else "component"
+
+
+def _as_vertices(a: Any, what: str, label: str) -> np.ndarray:
+    try:
+        arr = np.asarray(a, dtype=float)
+    except (TypeError, ValueError) as err:
+        raise SceneError(f"{label}: {what} vertices must be a list of [x, y] numbers ({err})") from err
+    if arr.ndim != 2 or arr.shape[1] != 2:
+        raise SceneError(f"{label}: {what} vertices must have shape (n, 2), got shape {arr.shape}")
+    bad = np.flatnonzero(~np.isfinite(arr).all(axis=1))
+    if bad.size:
+        k = int(bad[0])
+        raise SceneError(
+            f"{label}: {what} vertex {k} is {arr[k].tolist()}; coordinates must be finite (no NaN or infinity)"
+        )
+    return arr
+
+
+def check_component(reference: Any, deformed: Any, closed: bool, name: str) -> tuple[np.ndarray, np.ndarray]:
+    """Validate one component; return its reference and deformed vertices as float arrays.
+
+    A closed component whose first vertex is repeated at the end (in both
+    arrays) has the repeated vertex dropped.
+    """
+    label = _label(name)
+    if not isinstance(closed, (bool, np.bool_)):
+        raise SceneError(f"{label}: 'closed' must be true or false, got {closed!r}")
+    ref = _as_vertices(reference, "reference", label)
+    dfm = _as_vertices(deformed, "deformed", label)
+    if len(ref) != len(dfm):
+        raise SceneError(
+            f"{label}: {len(ref)} reference vertices but {len(dfm)} deformed vertices; "
+            "give the same material points in both"
+        )
+    if closed and len(ref) >= 2 and np.array_equal(ref[0], ref[-1]) and np.array_equal(dfm[0], dfm[-1]):
+        ref, dfm = ref[:-1], dfm[:-1]
+    need = 3 if closed else 2
+    if len(ref) < need:
+        kind = "a closed" if closed else "an open"
+        raise SceneError(f"{label}: {kind} component needs at least {need} vertices, got {len(ref)}")
+    ring = np.vstack([ref, ref[:1]]) if closed else ref
+    seg = np.linalg.norm(np.diff(ring, axis=0), axis=1)
+    zero = np.flatnonzero(seg == 0)
+    if zero.size:
+        k = int(zero[0])
+        k2 = (k + 1) % len(ref)
+        raise SceneError(
+            f"{label}: reference vertices {k} and {k2} coincide at {ref[k].tolist()}; "
+            "remove the repeated vertex (a zero-length reference segment has no parameter)"
+        )
+    return ref, dfm
+
+
+def _segments(scene) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """All reference segments of a scene: (m, 2, 2) coordinates, component and segment indices."""
+    segs, comp, idx = [], [], []
+    for c, comp_ in enumerate(scene.components):
+        r = comp_.reference_ring
+        segs.append(np.stack([r[:-1], r[1:]], axis=1))
+        comp.append(np.full(comp_.n_segments, c))
+        idx.append(np.arange(comp_.n_segments))
+    return np.concatenate(segs), np.concatenate(comp), np.concatenate(idx)
+
+
+def check_scene(scene) -> None:
+    """Validate a scene: at least one component, distinct names, an embedded reference.
+
+    The reference embedding ``j`` must be one-to-one (section 2.1): no two
+    reference segments may meet, except consecutive segments of one
+    component at their shared vertex.
+    """
+    import shapely
+
+    comps = scene.components
+    if len(comps) == 0:
+        raise SceneError("the scene has no component; give at least one")
+    names = [c.name for c in comps]
+    dup = {n for n in names if names.count(n) > 1}
+    if dup:
+        raise SceneError(f"component names must be distinct; repeated: {sorted(dup)}")
+    segs, comp, idx = _segments(scene)
+    lines = shapely.linestrings(segs)
+    tree = shapely.STRtree(lines)
+    a, b = tree.query(lines, predicate="intersects")
+    keep = a < b
+    a, b = a[keep], b[keep]
+    # consecutive segments of one component share exactly one vertex: allowed
+    same = comp[a] == comp[b]
+    nseg = np.array([c.n_segments for c in comps])[comp[a]]
+    closed = np.array([c.closed for c in comps])[comp[a]]
+    gap = idx[b] - idx[a]
+    adjacent = same & ((gap == 1) | (closed & (gap == nseg - 1)))
+    if adjacent.any():
+        # adjacent segments may only share their common vertex
+        inter = shapely.intersection(lines[a[adjacent]], lines[b[adjacent]])
+        only_point = shapely.get_type_id(inter) == 0
+        bad_adj = np.flatnonzero(adjacent)[~only_point]
+    else:
+        bad_adj = np.array([], dtype=int)
+    bad = np.sort(np.concatenate([np.flatnonzero(~adjacent), bad_adj]))
+    if bad.size:
+        k = int(bad[0])
+        ca, cb = comps[comp[a[k]]], comps[comp[b[k]]]
+        ia, ib = int(idx[a[k]]), int(idx[b[k]])
+        where = shapely.intersection(lines[a[k]], lines[b[k]])
+        pt = shapely.get_coordinates(where)[0].tolist()
+        raise SceneError(
+            "the reference is not an embedding: "
+            f"segment {ia} (vertices {ia}-{(ia + 1) % ca.n_vertices if ca.closed else ia + 1}) of component {ca.name!r} meets "
+            f"segment {ib} (vertices {ib}-{(ib + 1) % cb.n_vertices if cb.closed else ib + 1}) of component {cb.name!r} "
+            f"near {pt}; the reference configuration j must not touch itself (move the components apart)"
+        )
+
+
+def parse_scene_dict(data: Any) -> list[dict[str, Any]]:
+    """Check the JSON structure of a scene; return the keyword arguments of each component."""
+    if not isinstance(data, dict) or "components" not in data:
+        raise SceneFileError('a scene is a JSON object with a "components" list: {"components": [...]}')
+    items = data["components"]
+    if not isinstance(items, list):
+        raise SceneFileError(f'"components" must be a list, got {type(items).__name__}')
+    out = []
+    for k, item in enumerate(items):
+        if not isinstance(item, dict):
+            raise SceneFileError(f"component {k} must be a JSON object, got {type(item).__name__}")
+        missing = [key for key in ("reference", "deformed") if key not in item]
+        if missing:
+            raise SceneFileError(f"component {k} ({item.get('name', 'unnamed')!r}) misses the key(s) {missing}")
+        unknown = set(item) - _KEYS
+        if unknown:
+            raise SceneFileError(
+                f"component {k} ({item.get('name', 'unnamed')!r}) has unknown key(s) {sorted(unknown)}; "
+                f"allowed: {sorted(_KEYS)}"
+            )
+        name = item.get("name", f"C{k}")
+        if not isinstance(name, str):
+            raise SceneFileError(f"component {k}: 'name' must be a string, got {name!r}")
+        out.append(
+            {
+                "reference": item["reference"],
+                "deformed": item["deformed"],
+                "closed": item.get("closed", False),
+                "name": name,
+            }
+        )
+    return out

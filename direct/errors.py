@@ -1,0 +1,41 @@
+"""The exception family of `direct`.
+
+Every error that `direct` raises on purpose is a :class:`DirectError`; the
+subclasses say what kind of problem it is.  Messages name the component and
+the vertex at fault and say what to do about it.
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "DirectError",
+    "SceneError",
+    "SceneFileError",
+    "DegenerateError",
+    "NotSupportedError",
+    "ConvergenceError",
+]
+
+
+class DirectError(Exception):
+    """Base class of every error raised on purpose by `direct`."""
+
+
+class SceneError(DirectError, ValueError):
+    """A scene is invalid: bad coordinates, counts, or a reference that is not an embedding."""
+
+
+class SceneFileError(SceneError):
+    """A scene file cannot be read: malformed JSON, missing or mistyped keys."""
+
+
+class DegenerateError(DirectError, ValueError):
+    """The deformation is too degenerate for the generic-perturbation rule to decide."""
+
+
+class NotSupportedError(DirectError, NotImplementedError):
+    """The configuration is valid but not handled by this version of `direct`."""
+
+
+class ConvergenceError(DirectError, RuntimeError):
+    """A numerical stage did not reach the requested tolerance."""

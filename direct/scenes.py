@@ -1,0 +1,126 @@
+"""Built-in scenes, by name: ``direct.scenes.get("fig2")``.
+
+Every scene argument of the command line also accepts these names.
+
+========  =====================================================================
+name      what it is
+========  =====================================================================
+cross     two straight unit-speed segments of length 1 crossing at a right
+          angle at their midpoints (a = b = c = d = 1/2): ``J^G = 2 m^3 / 3``,
+          ``J^g = 2 m^5 / 5`` with ``m = 1/2``.
+cross60   two straight unit-speed segments of length 2 crossing at 60 degrees
+          at their midpoints; the geodesics do not follow grid axes.
+fig2      the paper's Figure 2: two intervals, the second dips below the first
+          and crosses it twice, with opposite signs.
+========  =====================================================================
+"""
+
+from __future__ import annotations
+
+from typing import Callable
+
+import numpy as np
+
+from .errors import SceneError
+from .scene import Component, Scene
+
+__all__ = ["get", "names", "cross", "resolve"]
+
+
+def cross(a: float = 0.5, b: float = 0.5, c: float = 0.5, d: float = 0.5, angle: float = np.pi / 2) -> Scene:
+    """Two straight unit-speed segments that cross once.
+
+    The first runs along the x axis from ``-a`` to ``b``, the second along
+    direction ``angle`` from ``-c`` to ``d``; they cross at the origin.  The
+    references are the same segments, apart and parallel, so the deformation
+    is an isometry on each component.
+
+    Parameters
+    ----------
+    a, b, c, d : float
+        Arclength from the crossing to the ends (length units, > 0).
+    angle : float
+        Angle between the two segments (radians, in ``(0, pi)``).
+
+    Returns
+    -------
+    Scene
+    """
+    e = np.array([np.cos(angle), np.sin(angle)])
+    first = Component([[0, 0], [a + b, 0]], [[-a, 0], [b, 0]], name="A")
+    second = Component([[0, 1 + a + b], [c + d, 1 + a + b]], [-c * e, d * e], name="B")
+    return Scene((first, second), name=f"cross(a={a}, b={b}, c={c}, d={d}, angle={angle:.6g})")
+
+
+def _fig2() -> Scene:
+    first = Component([[0, 0], [3, 0]], [[0, 0], [3, 0]], name="I1")
+    second = Component(
+        [[0, 1], [1, 1], [2, 1], [3, 1]],
+        [[0, 1], [1, -1], [2, -1], [3, 1]],
+        name="I2",
+    )
+    return Scene((first, second), name="fig2")
+
+
+_BUILTIN: dict[str, Callable[[], Scene]] = {
+    "cross": lambda: Scene(cross().components, name="cross"),
+    "cross60": lambda: Scene(cross(1, 1, 1, 1, np.pi / 3).components, name="cross60"),
+    "fig2": _fig2,
+}
+
+
+def names() -> list[str]:
+    """Names of the built-in scenes."""
+    return sorted(_BUILTIN)
+
+
+def get(name: str) -> Scene:
+    """A built-in scene by name.
+
+    Parameters
+    ----------
+    name : str
+        One of :func:`names`.
+
+    Returns
+    -------
+    Scene
+
+    Raises
+    ------
+    SceneError
+        If there is no built-in scene of that name.
+    """
+    try:
+        make = _BUILTIN[name]
+    except KeyError:
+        raise SceneError(f"no built-in scene named {name!r}; choose one of {names()}") from None
+    return make()
+
+
+def resolve(scene: "Scene | str") -> Scene:
+    """A scene given as a :class:`Scene`, a JSON file path, or a built-in name.
+
+    Parameters
+    ----------
+    scene : Scene or str or path-like
+        A file that exists is read with :func:`direct.load_scene`; otherwise
+        the string must be a built-in name (:func:`names`).
+
+    Returns
+    -------
+    Scene
+    """
+    import os
+
+    from .scene import load_scene
+
+    if isinstance(scene, Scene):
+        return scene
+    if isinstance(scene, (str, os.PathLike)):
+        if os.path.exists(scene):
+            return load_scene(scene)
+        if str(scene) in _BUILTIN:
+            return get(str(scene))
+        raise SceneError(f"{os.fspath(scene)!r} is neither a scene file nor a built-in scene name {names()}")
+    raise SceneError(f"expected a Scene, a JSON file path or a built-in name, got {type(scene).__name__}")
