@@ -12,6 +12,11 @@ cross60   two straight unit-speed segments of length 2 crossing at 60 degrees
           at their midpoints; the geodesics do not follow grid axes.
 fig2      the paper's Figure 2: two intervals, the second dips below the first
           and crosses it twice, with opposite signs.
+waves     a curved interval (a sine wave sampled at 121 vertices) across a
+          straight one: five crossings of alternating signs.
+loop      one interval that makes a loop and crosses itself once: the curve
+          gamma lives in the triangle ``x1 < x2`` of ``I x I`` and may end
+          on the diagonal.
 ========  =====================================================================
 """
 
@@ -62,10 +67,28 @@ def _fig2() -> Scene:
     return Scene((first, second), name="fig2")
 
 
+def _waves() -> Scene:
+    x = np.linspace(0.0, 3.0, 121)
+    ref_wave = np.column_stack([x, np.full_like(x, 2.0)])
+    wave = np.column_stack([x, 0.6 * np.sin(2 * np.pi * (x - 0.113) / 1.2)])
+    line = Component([[-0.5, 0], [3.5, 0]], [[-0.5, 0], [3.5, 0]], name="line")
+    return Scene((line, Component(ref_wave, wave, name="wave")), name="waves")
+
+
+def _loop() -> Scene:
+    t = np.linspace(0.0, 1.0, 41)
+    ref = np.column_stack([3 * t, np.zeros_like(t)])
+    # a prolate trochoid arch: x goes forward, back, forward and the image crosses itself once
+    dfm = np.column_stack([3 * t + 1.2 * np.sin(2 * np.pi * t), 0.8 * (1 - np.cos(2 * np.pi * t))])
+    return Scene((Component(ref, dfm, name="loop"),), name="loop")
+
+
 _BUILTIN: dict[str, Callable[[], Scene]] = {
     "cross": lambda: Scene(cross().components, name="cross"),
     "cross60": lambda: Scene(cross(1, 1, 1, 1, np.pi / 3).components, name="cross60"),
     "fig2": _fig2,
+    "waves": _waves,
+    "loop": _loop,
 }
 
 

@@ -1,0 +1,59 @@
+"""Shared fixtures and scene generators for the tests."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import direct
+
+# relative agreement expected between two computations of the same J at the default tol 1e-3
+RTOL = 5e-3
+
+
+def random_intervals(rng: np.random.Generator, n_comp: int = 2, n_vert: int = 5, spread: float = 1.0) -> direct.Scene:
+    """Random open polylines: references are parallel horizontal lines, deformations random walks.
+
+    The references are embedded by construction; the deformations usually cross.
+    """
+    comps = []
+    for k in range(n_comp):
+        steps = rng.uniform(0.3, 1.0, size=n_vert - 1)
+        x = np.concatenate([[0.0], np.cumsum(steps)])
+        ref = np.column_stack([x, np.full(n_vert, 2.0 * k)])
+        dfm = rng.normal(scale=spread, size=(n_vert, 2))
+        comps.append(direct.Component(ref, dfm, name=f"P{k}"))
+    return direct.Scene(tuple(comps), name="random")
+
+
+def random_crossing_scene(seed: int, n_comp: int = 2, n_vert: int = 5, min_crossings: int = 1, max_crossings: int = 6):
+    """A random interval scene with a number of crossings in the given range (deterministic in seed)."""
+    rng = np.random.default_rng(seed)
+    for _ in range(200):
+        sc = random_intervals(rng, n_comp, n_vert)
+        n = len(direct.find_crossings(sc))
+        if min_crossings <= n <= max_crossings:
+            return sc
+    raise RuntimeError("no random scene with the requested number of crossings")
+
+
+def insert_vertex(comp: direct.Component, seg: int, t: float) -> direct.Component:
+    """The same component with a material point added at fraction t of segment seg."""
+    ref, dfm = comp.reference_ring, comp.deformed_ring
+    new_r = ref[seg] + t * (ref[seg + 1] - ref[seg])
+    new_d = dfm[seg] + t * (dfm[seg + 1] - dfm[seg])
+    r = np.insert(comp.reference, seg + 1, new_r, axis=0)
+    d = np.insert(comp.deformed, seg + 1, new_d, axis=0)
+    return direct.Component(r, d, comp.closed, comp.name)
+
+
+def rigid(scene: direct.Scene, angle: float, shift, scale: float = 1.0) -> direct.Scene:
+    """Apply a similarity x -> scale * R(angle) x + shift to every deformed vertex."""
+    c, s = np.cos(angle), np.sin(angle)
+    R = np.array([[c, -s], [s, c]])
+    return scene.with_deformed([scale * c_.deformed @ R.T + np.asarray(shift) for c_ in scene.components])
+
+
+@pytest.fixture
+def rng():
+    return np.random.default_rng(20261123)

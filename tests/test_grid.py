@@ -1,0 +1,109 @@
+"""Metric edge integrals and grid graphs."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from conftest import random_crossing_scene
+from scipy.integrate import quad
+
+import direct
+from direct.geodesics import grid_distances
+from direct.grid import Domain, build_graph, stencil
+from direct.metric import G, GFamily, get_metric, segment_lengths
+from direct.penalty import domains
+
+
+def _quad_length(metric, comps, P, Q):
+    """Independent length: adaptive quadrature of rho * norm, with breakpoints at vertex crossings."""
+    ci, cj = comps
+    d = Q - P
+
+    def f(t):
+        x = P + t * d
+        k1 = ci.segment_index(x[0])
+        k2 = cj.segment_index(x[1])
+        r = ci.phi(x[0]) - cj.phi(x[1])
+        a, b = ci.velocities[k1][None], cj.velocities[k2][None]
+        return float(metric.weight(np.array(r @ r)) * metric.norm(a, b, d[None])[0])
+
+    pts = []
+    for axis, comp in enumerate(comps):
+        if d[axis] != 0:
+            t = (comp.params - P[axis]) / d[axis]
+            pts += [float(v) for v in t if 0 < v < 1]
+    return quad(f, 0, 1, points=sorted(pts) or None, limit=200, epsabs=0, epsrel=1e-12)[0]
+
+
+@pytest.mark.parametrize("metric", ["G", "g", "euclid"])
+def test_segment_lengths_match_adaptive_quadrature(metric, rng):
+    sc = random_crossing_scene(3, n_vert=7)
+    comps = sc.components
+    met = get_metric(metric)
+    P = rng.uniform(0, 1, size=(20, 2)) * [comps[0].length, comps[1].length]
+    Q = rng.uniform(0, 1, size=(20, 2)) * [comps[0].length, comps[1].length]
+    got = segment_lengths(met, comps, P, Q)
+    want = [_quad_length(met, comps, p, q) for p, q in zip(P, Q)]
+    np.testing.assert_allclose(got, want, rtol=1e-9)
+
+
+def test_segment_lengths_are_symmetric_and_additive(rng):
+    sc = random_crossing_scene(4, n_vert=6)
+    comps = sc.components
+    met = get_metric("G")
+    P = rng.uniform(0, 2, size=(30, 2))
+    Q = rng.uniform(0, 2, size=(30, 2))
+    M = 0.37 * P + 0.63 * Q
+    np.testing.assert_allclose(segment_lengths(met, comps, P, Q), segment_lengths(met, comps, Q, P), rtol=1e-12)
+    np.testing.assert_allclose(
+        segment_lengths(met, comps, P, Q),
+        segment_lengths(met, comps, P, M) + segment_lengths(met, comps, M, Q),
+        rtol=1e-11,
+    )
+    # swapping the roles of the two components mirrors the domain
+    np.testing.assert_allclose(
+        segment_lengths(met, comps, P, Q), segment_lengths(met, comps[::-1], P[:, ::-1], Q[:, ::-1]), rtol=1e-12
+    )
+
+
+def test_G_family_with_callable_h_agrees_with_G():
+    sc = direct.scenes.get("fig2")
+    fam = GFamily(h=lambda s: s**2, label="s^2")
+    P, Q = np.array([[0.1, 0.2], [1.0, 2.0]]), np.array([[2.9, 2.7], [2.0, 0.5]])
+    np.testing.assert_allclose(
+        segment_lengths(fam, sc.components, P, Q), segment_lengths(G(), sc.components, P, Q), rtol=1e-10
+    )
+
+
+@pytest.mark.parametrize("n,expected", [(4, 2), (8, 4), (16, 8), (32, 16)])
+def test_stencil_sizes(n, expected):
+    half = stencil(n)
+    assert len(half) == expected
+    assert len({tuple(v) for v in np.vstack([half, -half])}) == n
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_scipy_and_networkx_distances_identical(seed):
+    sc = random_crossing_scene(seed, n_vert=6, min_crossings=2)
+    met = get_metric("G")
+    for dom in domains(sc, direct.find_crossings(sc)):
+        g = build_graph(dom, met, resolution=30)
+        Da, D0a, ra = grid_distances(g, "scipy")
+        Db, D0b, rb = grid_distances(g, "networkx")
+        np.testing.assert_allclose(Da, Db, rtol=1e-12)
+        np.testing.assert_allclose(D0a, D0b, rtol=1e-12)
+        # the routes are real paths of the graph whose weights add up to the distance
+        W = g.matrix.maximum(g.matrix.T).tocsr()
+        for k in range(len(dom.points)):
+            nodes = ra[k](0)
+            assert nodes[0] == g.crossing_nodes[k] and nodes[-1] == 0
+            total = sum(W[u, v] for u, v in zip(nodes[:-1], nodes[1:]))
+            assert total == pytest.approx(D0a[k], rel=1e-12)
+
+
+def test_triangle_domain_has_diagonal_as_boundary():
+    comp = direct.Component([[0, 0], [1, 0]], [[0, 0], [1, 0]], name="S")
+    dom = Domain((0, 0), (comp, comp), np.array([[0.2, 0.25]]), np.array([1]), np.array([0]))
+    t = dom.exit_time(np.array([[0.2, 0.25]]), np.array([[1.0, 0.0]]))
+    assert t[0] == pytest.approx(0.05)
+    assert dom.boundary_distance(np.array([[0.2, 0.25]]))[0] == pytest.approx(0.05 / np.sqrt(2))

@@ -1,0 +1,184 @@
+"""The penalty J: closed forms, metamorphic relations, cross-checks."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from conftest import RTOL, insert_vertex, random_crossing_scene, rigid
+
+import direct
+from direct.metric import get_metric, segment_lengths
+
+# one crossing point of two straight unit-speed segments at 60 degrees, on [-1, 1]^2, G metric:
+# distance to the boundary from the eikonal ODE (shared/NUMERICS.md, two independent computations)
+CROSS60_POINT = 0.2581226580725618
+
+CASES = [(0.5, 0.5, 0.5, 0.5), (0.3, 0.5, 0.4, 0.6), (0.7, 0.2, 0.9, 0.8), (1.0, 1.5, 0.45, 2.0)]
+
+
+@pytest.mark.parametrize("a,b,c,d", CASES)
+def test_right_angle_closed_form_G(a, b, c, d):
+    m = min(a, b, c, d)
+    res = direct.penalty(direct.scenes.cross(a, b, c, d), "G")
+    assert res.value == pytest.approx(2 * m**3 / 3, rel=1e-6)
+
+
+@pytest.mark.parametrize("a,b,c,d", CASES)
+def test_right_angle_closed_form_g(a, b, c, d):
+    m = min(a, b, c, d)
+    res = direct.penalty(direct.scenes.cross(a, b, c, d), "g")
+    assert res.value == pytest.approx(2 * m**5 / 5, rel=1e-6)
+
+
+@pytest.mark.parametrize("a,b,c,d", CASES)
+def test_right_angle_closed_form_euclid(a, b, c, d):
+    # |e1 dx1 - e2 dx2| is the Euclidean norm when e1 is orthogonal to e2: distance m to the nearest side
+    res = direct.penalty(direct.scenes.cross(a, b, c, d), "euclid")
+    assert res.value == pytest.approx(2 * min(a, b, c, d), rel=1e-9)
+
+
+def test_sixty_degrees_reference_value():
+    """A case whose geodesics follow no grid direction: grid Dijkstra alone is off by ~0.7 %."""
+    res = direct.penalty("cross60", "G", tol=1e-4)
+    exact = 2 * CROSS60_POINT  # the crossing gives two points of M x M, each joined to the boundary
+    assert abs(res.grid_value - exact) > 1e-3 * exact  # the grid alone is biased...
+    assert res.value == pytest.approx(exact, rel=1e-5)  # ...the refined value is not
+    assert abs(res.value - exact) <= res.error_estimate
+
+
+def test_no_crossing_gives_zero(rng):
+    for _ in range(5):
+        sc = direct.scenes.get("fig2")
+        # the reference itself, moved rigidly: an embedding, no crossing
+        moved = direct.Scene(
+            tuple(direct.Component(c.reference, c.reference @ np.array([[0, -1], [1, 0]]) + 3.0, name=c.name)
+                  for c in sc.components)
+        )
+        res = direct.penalty(moved)
+        assert res.value == 0.0 and res.crossings == [] and res.pairs == []
+
+
+@pytest.mark.parametrize("metric", ["G", "g", "euclid"])
+def test_fig2_two_crossings_opposite_signs(metric):
+    res = direct.penalty("fig2", metric)
+    assert sorted(c.sign for c in res.crossings) == [-1, 1]
+    assert res.value > 0
+    # the value is the sum of the lengths of the listed curves, both halves of M x M included
+    assert sum(p.length for p in res.pairs) == pytest.approx(res.value, rel=1e-12)
+    assert len(res.pairs) % 2 == 0
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_rigid_motion_invariance(seed):
+    sc = random_crossing_scene(seed)
+    base = direct.penalty(sc)
+    moved = direct.penalty(rigid(sc, angle=0.3 + seed, shift=(1.5, -2.0)))
+    assert moved.value == pytest.approx(base.value, rel=RTOL)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_scaling_G_is_cubic(seed):
+    sc = random_crossing_scene(seed)
+    lam = 1.7
+    base = direct.penalty(sc, "G")
+    scaled = direct.penalty(rigid(sc, 0.0, (0.0, 0.0), scale=lam), "G")
+    assert scaled.value == pytest.approx(lam**3 * base.value, rel=RTOL)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_vertex_insertion_invariance(seed):
+    sc = random_crossing_scene(seed)
+    rng = np.random.default_rng(seed)
+    k = int(rng.integers(len(sc.components)))
+    comp = sc.components[k]
+    seg = int(rng.integers(comp.n_segments))
+    comps = list(sc.components)
+    comps[k] = insert_vertex(comp, seg, float(rng.uniform(0.1, 0.9)))
+    refined = direct.Scene(tuple(comps))
+    for metric in ("G", "g"):
+        assert direct.penalty(refined, metric).value == pytest.approx(direct.penalty(sc, metric).value, rel=RTOL)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_reversal_invariance(seed):
+    sc = random_crossing_scene(seed)
+    comps = list(sc.components)
+    comps[0] = comps[0].reversed()
+    rev = direct.Scene(tuple(comps))
+    for metric in ("G", "g"):
+        assert direct.penalty(rev, metric).value == pytest.approx(direct.penalty(sc, metric).value, rel=RTOL)
+
+
+def test_G_is_invariant_under_reparametrization_and_g_is_not():
+    """Moving the reference vertices along the reference (same deformation) reparametrizes M (Prop. 18)."""
+    sc = direct.scenes.get("fig2")
+    a, b = sc.components
+    # I1 gets a material point at reference 0.3 that the deformation sends to 1.5: same image curve
+    a2 = direct.Component([[0, 0], [0.3, 0], [3, 0]], [[0, 0], [1.5, 0], [3, 0]], name=a.name)
+    ref = np.array([[0, 1], [0.15, 1], [2.85, 1], [3, 1]], dtype=float)  # uneven spacing along the same line
+    reparam = direct.Scene((a2, direct.Component(ref, b.deformed, name=b.name)))
+    G0, G1 = direct.penalty(sc, "G").value, direct.penalty(reparam, "G").value
+    g0, g1 = direct.penalty(sc, "g"), direct.penalty(reparam, "g")
+    assert G1 == pytest.approx(G0, rel=RTOL)
+    # the curve from the negative point gets much cheaper, the other one dearer
+    by_end = lambda res: sorted((p.start is None, p.length) for p in res.pairs)  # noqa: E731
+    for (_, l0), (_, l1) in zip(by_end(g0), by_end(g1)):
+        assert abs(l1 - l0) > 10 * RTOL * l0
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_scipy_and_networkx_agree(seed):
+    sc = random_crossing_scene(seed)
+    a = direct.penalty(sc, backend="scipy", refine=False)
+    b = direct.penalty(sc, backend="networkx", refine=False)
+    assert a.value == pytest.approx(b.value, rel=1e-12)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_paths_recompute_their_lengths(seed):
+    """Recompute each curve's length from the returned polyline and the metric (a checker, networkx style)."""
+    sc = random_crossing_scene(seed, min_crossings=2)
+    for metric in ("G", "g"):
+        res = direct.penalty(sc, metric)
+        met = get_metric(metric)
+        names = [c.name for c in sc.components]
+        for p in res.pairs:
+            comps = (sc.components[names.index(p.components[0])], sc.components[names.index(p.components[1])])
+            exact = segment_lengths(met, comps, p.path[:-1], p.path[1:]).sum()
+            # the polyline is a real curve: its exact length bounds the extrapolated one from above
+            assert exact >= p.length - 1e-12 * max(exact, 1e-300)
+            assert exact == pytest.approx(p.length, rel=2e-3, abs=1e-14)
+            # its ends are the crossing points or on the boundary
+            if p.start is not None:
+                np.testing.assert_allclose(p.path[0], p.start, atol=1e-12)
+            if p.end is not None:
+                np.testing.assert_allclose(p.path[-1], p.end, atol=1e-12)
+
+
+def test_refinement_converges_with_tolerance():
+    exact = 2 * CROSS60_POINT
+    errs = [abs(direct.penalty("cross60", tol=t).value - exact) / exact for t in (1e-2, 1e-4, 1e-6)]
+    assert errs[2] <= 1e-6
+    assert errs[2] <= errs[0]
+
+
+def test_grid_value_converges_with_resolution_to_a_biased_limit():
+    exact = 2 * CROSS60_POINT
+    vals = [direct.penalty("cross60", refine=False, resolution=r).value for r in (24, 48, 96)]
+    assert all(v >= exact for v in vals)  # grid paths are real curves: upper bounds
+    assert vals[2] <= vals[0]
+
+
+def test_closed_component_not_yet_supported():
+    ring = direct.Component([[0, 0], [1, 0], [1, 1], [0, 1]], [[0, 0], [1, 0], [1, 1], [0, 1]], closed=True)
+    with pytest.raises(direct.NotSupportedError, match="closed"):
+        direct.penalty(direct.Scene((ring,)))
+
+
+def test_bad_settings():
+    with pytest.raises(direct.DirectError, match="metric"):
+        direct.penalty("cross", "H")
+    with pytest.raises(direct.DirectError, match="tol"):
+        direct.penalty("cross", tol=0)
+    with pytest.raises(direct.DirectError, match="euclid"):
+        direct.penalty("cross", "euclid", power=3)

@@ -1,0 +1,137 @@
+"""Scenes, the JSON format, and every input check."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+import direct
+
+
+def _write(tmp_path, data, raw=False):
+    p = tmp_path / "scene.json"
+    p.write_text(data if raw else json.dumps(data))
+    return p
+
+
+def test_json_round_trip(tmp_path):
+    sc = direct.scenes.get("fig2")
+    p = tmp_path / "fig2.json"
+    sc.to_json(p)
+    back = direct.load_scene(p)
+    assert [c.name for c in back.components] == ["I1", "I2"]
+    for a, b in zip(sc.components, back.components):
+        np.testing.assert_array_equal(a.reference, b.reference)
+        np.testing.assert_array_equal(a.deformed, b.deformed)
+        assert a.closed == b.closed
+
+
+def test_params_are_reference_arclength():
+    c = direct.Component([[0, 0], [3, 4], [3, 5]], [[0, 0], [1, 0], [1, 7]])
+    np.testing.assert_allclose(c.params, [0, 5, 6])
+    np.testing.assert_allclose(c.velocities, [[0.2, 0], [0, 7]])
+    np.testing.assert_allclose(c.phi([2.5, 5.5]), [[0.5, 0], [1, 3.5]])
+
+
+def test_closing_vertex_is_dropped():
+    c = direct.Component([[0, 0], [1, 0], [0, 1], [0, 0]], [[0, 0], [2, 0], [0, 2], [0, 0]], closed=True)
+    assert c.n_vertices == 3 and c.n_segments == 3
+    assert c.length == pytest.approx(2 + np.sqrt(2))
+
+
+def test_reversal_keeps_the_image():
+    c = direct.Component([[0, 0], [1, 0], [1, 2]], [[0, 0], [2, 0], [2, 1]])
+    r = c.reversed()
+    s = np.linspace(0, c.length, 7)
+    np.testing.assert_allclose(r.phi(c.length - s), c.phi(s), atol=1e-12)
+
+
+@pytest.mark.parametrize(
+    "kwargs,match",
+    [
+        (dict(reference=[[0, 0], [np.nan, 1]], deformed=[[0, 0], [1, 1]]), r"reference vertex 1 .*finite"),
+        (dict(reference=[[0, 0], [1, 1]], deformed=[[0, 0], [np.inf, 1]]), r"deformed vertex 1 .*finite"),
+        (dict(reference=[[0, 0]], deformed=[[0, 0]]), "at least 2 vertices"),
+        (dict(reference=[[0, 0], [1, 0]], deformed=[[0, 0], [1, 0]], closed=True), "at least 3 vertices"),
+        (dict(reference=[[0, 0], [1, 0], [2, 0]], deformed=[[0, 0], [1, 0]]), "3 reference vertices but 2 deformed"),
+        (dict(reference=[[0, 0], [1, 0], [1, 0]], deformed=[[0, 0], [1, 0], [2, 0]]), "vertices 1 and 2 coincide"),
+        (dict(reference=[[0, 0, 0], [1, 0, 0]], deformed=[[0, 0], [1, 0]]), r"shape \(n, 2\)"),
+        (dict(reference="abc", deformed=[[0, 0], [1, 0]]), "reference vertices"),
+        (dict(reference=[[0, 0], [1, 0]], deformed=[[0, 0], [1, 0]], closed="yes"), "'closed' must be"),
+    ],
+)
+def test_component_checks(kwargs, match):
+    with pytest.raises(direct.SceneError, match=match) as info:
+        direct.Component(name="K", **kwargs)
+    assert "'K'" in str(info.value)
+
+
+def test_reference_must_be_an_embedding():
+    a = direct.Component([[0, 0], [2, 0]], [[0, 0], [2, 0]], name="A")
+    b = direct.Component([[1, -1], [1, 1]], [[5, -1], [5, 1]], name="B")
+    with pytest.raises(direct.SceneError, match=r"not an embedding.*'A'.*'B'"):
+        direct.Scene((a, b))
+    loop = direct.Component([[0, 0], [2, 0], [2, 1], [1, -1]], [[0, 0], [2, 0], [2, 1], [1, -1]], name="L")
+    with pytest.raises(direct.SceneError, match=r"segment 0 .*segment 2 .*'L'"):
+        direct.Scene((loop,))
+    back = direct.Component([[0, 0], [2, 0], [1, 0]], [[0, 0], [2, 0], [1, 0]], name="F")
+    with pytest.raises(direct.SceneError, match="not an embedding"):
+        direct.Scene((back,))
+
+
+def test_scene_checks():
+    a = direct.Component([[0, 0], [1, 0]], [[0, 0], [1, 0]], name="A")
+    b = direct.Component([[0, 1], [1, 1]], [[0, 1], [1, 1]], name="A")
+    with pytest.raises(direct.SceneError, match="distinct"):
+        direct.Scene((a, b))
+    with pytest.raises(direct.SceneError, match="no component"):
+        direct.Scene(())
+
+
+@pytest.mark.parametrize(
+    "text,match",
+    [
+        ("{not json", "not valid JSON"),
+        ("[]", '"components"'),
+        ('{"components": {}}', "must be a list"),
+        ('{"components": [3]}', "must be a JSON object"),
+        ('{"components": [{"reference": [[0,0],[1,0]]}]}', "deformed"),
+        ('{"components": [{"reference": [[0,0],[1,0]], "deformed": [[0,0],[1,0]], "colour": 1}]}', "unknown key"),
+        ('{"components": [{"name": 5, "reference": [[0,0],[1,0]], "deformed": [[0,0],[1,0]]}]}', "'name' must"),
+    ],
+)
+def test_file_checks(tmp_path, text, match):
+    with pytest.raises(direct.SceneFileError, match=match):
+        direct.load_scene(_write(tmp_path, text, raw=True))
+
+
+def test_missing_file(tmp_path):
+    with pytest.raises(direct.SceneFileError, match="cannot read"):
+        direct.load_scene(tmp_path / "nope.json")
+
+
+def test_nan_in_file_names_vertex(tmp_path):
+    text = '{"components": [{"name": "X", "reference": [[0,0],[1,0],[2,0]], "deformed": [[0,0],[NaN,0],[2,0]]}]}'
+    with pytest.raises(direct.SceneError, match=r"'X'.*deformed vertex 1"):
+        direct.load_scene(_write(tmp_path, text, raw=True))
+
+
+def test_builtin_scenes_and_resolve(tmp_path):
+    assert {"cross", "cross60", "fig2"} <= set(direct.scenes.names())
+    for name in direct.scenes.names():
+        assert isinstance(direct.scenes.get(name), direct.Scene)
+    with pytest.raises(direct.SceneError, match="no built-in scene"):
+        direct.scenes.get("nope")
+    p = tmp_path / "s.json"
+    direct.scenes.get("cross").to_json(p)
+    assert direct.scenes.resolve(str(p)).components[0].name == "A"
+    with pytest.raises(direct.SceneError, match="neither a scene file"):
+        direct.scenes.resolve("nope")
+
+
+def test_errors_are_one_family():
+    for cls in (direct.SceneError, direct.SceneFileError, direct.DegenerateError, direct.NotSupportedError,
+                direct.ConvergenceError):
+        assert issubclass(cls, direct.DirectError)
