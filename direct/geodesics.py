@@ -5,19 +5,23 @@ geodesic distances):
 
 1. **Grid Dijkstra** (:func:`grid_distances`) on the graph of
    :func:`direct.grid.build_graph`, with :func:`scipy.sparse.csgraph.dijkstra`
-   or, as an independent cross-check, :mod:`networkx`.  It gives every
-   distance between crossing points and from each crossing point to the
-   boundary, and the route of each geodesic.  Grid distances are lengths of
-   real curves, so they are upper bounds, but they keep a metrication bias
-   that refinement of the grid never removes (up to 2.75 % with 16
-   neighbours, see ``shared/NUMERICS.md``).
+   or, as an independent cross-check, :mod:`networkx`.  It gives the
+   distances between all *terminals* (the boundary parts, then the crossing
+   points) and the route of each geodesic.  Grid distances are lengths of
+   real curves, hence upper bounds, but they keep a metrication bias that
+   refining the grid never removes (up to 2.75 % with 16 neighbours, see
+   ``shared/NUMERICS.md``).  On a torus, :func:`torus_distances` works on a
+   3 x 3 block of the universal cover, so that each distance comes with the
+   homotopy class of its route (how many times it goes around each circle).
 2. **Continuous refinement** (:func:`refine`): each route is resampled as a
-   polyline with ``n`` segments whose interior vertices (and free end on the
-   boundary) minimize the exact metric length, by L-BFGS-B with a gradient by
-   central differences (each vertex moves only its two segments, so all
-   partial derivatives come from one vectorized length evaluation).  ``n``
-   doubles until Richardson extrapolation (error ``~ n^-2``) changes the
-   length by less than the tolerance.
+   polyline with ``n`` segments whose free vertices (interior ones, ends that
+   slide on the boundary, or all of them for a closed curve) minimize the
+   exact metric length by a damped Newton method.  The Hessian of the length
+   is sparse (a vertex moves only its two segments) and is assembled from
+   finite-difference Hessians of single segments, whose lengths are exact.
+   ``n`` doubles until the Richardson extrapolation (error ``~ n^-2``)
+   changes the length by less than the tolerance; the correction is the
+   error estimate.
 """
 
 from __future__ import annotations
@@ -26,33 +30,56 @@ from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
+import scipy.sparse as sp
 from scipy.optimize import minimize
 from scipy.sparse.csgraph import dijkstra
+from scipy.sparse.linalg import spsolve
 
 from .grid import Domain, GridGraph
 from .metric import Metric, segment_lengths
 
-__all__ = ["grid_distances", "refine", "RefinedPath", "Backend"]
+__all__ = ["grid_distances", "torus_distances", "closed_curve_distances", "refine", "RefinedPath", "Backend"]
 
 Backend = Literal["scipy", "networkx"]
 
 
-def _networkx_paths(graph: GridGraph, sources: np.ndarray) -> tuple[np.ndarray, list[dict]]:
-    import networkx as nx
+def _paths_from_predecessors(pred: np.ndarray, sources: np.ndarray):
+    def route(a: int, target: int) -> list[int]:
+        out = [int(target)]
+        while out[-1] != sources[a]:
+            nxt = int(pred[a, out[-1]])
+            if nxt < 0:
+                raise RuntimeError("no path")  # pragma: no cover - callers only ask for reachable targets
+            out.append(nxt)
+        return out[::-1]
 
-    G = nx.Graph()
-    G.add_weighted_edges_from(zip(graph.rows.tolist(), graph.cols.tolist(), graph.weights.tolist()))
-    dist = np.full((len(sources), graph.n_nodes), np.inf)
-    paths = []
-    for k, s in enumerate(sources):
-        d, p = nx.single_source_dijkstra(G, int(s), weight="weight")
-        dist[k, list(d.keys())] = list(d.values())
-        paths.append(p)
-    return dist, paths
+    return route
 
 
-def grid_distances(graph: GridGraph, backend: Backend = "scipy") -> tuple[np.ndarray, np.ndarray, list]:
-    """Grid distances between the crossing points of a domain, and to its boundary.
+def _shortest(matrix: sp.csr_matrix, sources: np.ndarray, backend: Backend):
+    """Distances from ``sources`` to every node, and a route function ``route(a, target)``."""
+    if backend == "scipy":
+        dist, pred = dijkstra(matrix, directed=True, indices=sources, return_predecessors=True)
+        return dist, _paths_from_predecessors(pred, sources)
+    if backend == "networkx":
+        import networkx as nx
+
+        coo = matrix.tocoo()
+        G = nx.DiGraph()
+        G.add_nodes_from(range(matrix.shape[0]))
+        G.add_weighted_edges_from(zip(coo.row.tolist(), coo.col.tolist(), coo.data.tolist()))
+        dist = np.full((len(sources), matrix.shape[0]), np.inf)
+        paths = []
+        for k, s in enumerate(sources):
+            d, p = nx.single_source_dijkstra(G, int(s), weight="weight")
+            dist[k, list(d.keys())] = list(d.values())
+            paths.append(p)
+        return dist, (lambda a, target: paths[a][int(target)])
+    raise ValueError(f"backend must be 'scipy' or 'networkx', got {backend!r}")
+
+
+def grid_distances(graph: GridGraph, backend: Backend = "scipy") -> tuple[np.ndarray, callable]:
+    """Grid distances between the terminals of a domain: its boundary parts, then its crossing points.
 
     Parameters
     ----------
@@ -64,33 +91,122 @@ def grid_distances(graph: GridGraph, backend: Backend = "scipy") -> tuple[np.nda
 
     Returns
     -------
-    D : (n, n) ndarray
-        ``D[a, b]`` grid distance between crossing points ``a`` and ``b``.
-    D0 : (n,) ndarray
-        Grid distance from each crossing point to the boundary (ground).
-    routes : list of callables
-        ``routes[a](target)`` gives the node path from point ``a`` to node ``target``.
+    T : (n_terminals, n_terminals) ndarray
+        ``T[a, b]``: grid distance of a curve from terminal ``a`` to terminal
+        ``b`` (terminals ``0 .. n_grounds - 1`` are the boundary parts, the
+        others the crossing points in order).  No curve runs through the
+        boundary.
+    route : callable
+        ``route(a, b)`` is the parameter-space polyline of that curve.
     """
-    src = graph.crossing_nodes
-    if backend == "scipy":
-        dist, pred = dijkstra(graph.matrix, directed=False, indices=src, return_predecessors=True)
+    src, dst = graph.sources, graph.targets
+    dist, node_route = _shortest(graph.matrix, src, backend)
 
-        def route(k):
-            def path(target):
-                out = [int(target)]
-                while out[-1] != src[k]:
-                    out.append(int(pred[k, out[-1]]))
-                return out[::-1]
+    def route(a: int, b: int) -> np.ndarray:
+        return graph.node_path(node_route(a, dst[b]))
 
-            return path
+    return dist[:, dst], route
 
-        routes = [route(k) for k in range(len(src))]
-    elif backend == "networkx":
-        dist, paths = _networkx_paths(graph, src)
-        routes = [(lambda p: (lambda target: p[int(target)]))(p) for p in paths]
-    else:
-        raise ValueError(f"backend must be 'scipy' or 'networkx', got {backend!r}")
-    return dist[:, src], dist[:, 0], routes
+
+_COVER = [(a, b) for a in (-1, 0, 1) for b in (-1, 0, 1)]
+
+
+def _cover_matrix(graph: GridGraph) -> sp.csr_matrix:
+    """The 3 x 3 block of the universal cover of a torus graph: copy ``c`` of node ``u`` is ``u + N c``."""
+    N = graph.n_nodes
+    index = {c: k for k, c in enumerate(_COVER)}
+    rows, cols, data = [], [], []
+    for c in _COVER:
+        k = np.array(c)
+        for r, q, w, dk in ((graph.rows, graph.cols, graph.weights, graph.winds),
+                            (graph.cols, graph.rows, graph.weights, -graph.winds)):
+            to = k[None, :] + dk
+            ok = (np.abs(to) <= 1).all(axis=1)
+            ci = np.array([index[(int(a), int(b))] for a, b in to[ok]], dtype=np.int64)
+            rows.append(r[ok] + N * index[c])
+            cols.append(q[ok] + N * ci)
+            data.append(w[ok])
+    n = N * len(_COVER)
+    return sp.csr_matrix((np.concatenate(data), (np.concatenate(rows), np.concatenate(cols))), shape=(n, n))
+
+
+def torus_distances(graph: GridGraph, backend: Backend = "scipy") -> tuple[dict, callable]:
+    """Grid distances between crossing points of a torus, by homotopy class.
+
+    Returns
+    -------
+    T : dict
+        ``T[(k1, k2)][a, b]``: grid distance from point ``a`` to point ``b``
+        along a route that crosses the seams ``s = 0`` and ``v = 0`` (signed)
+        ``k1`` and ``k2`` times, for ``k1, k2`` in ``{-1, 0, 1}``.
+    route : callable
+        ``route(a, b, k)``: the unwrapped parameter polyline of that route.
+    """
+    N = graph.n_nodes
+    M = _cover_matrix(graph)
+    centre = _COVER.index((0, 0))
+    src = graph.crossing_nodes + N * centre
+    dist, node_route = _shortest(M, src, backend)
+    T = {c: dist[:, graph.crossing_nodes + N * k] for k, c in enumerate(_COVER)}
+
+    def route(a: int, b: int, c: tuple[int, int]) -> np.ndarray:
+        nodes = node_route(a, graph.crossing_nodes[b] + N * _COVER.index(tuple(c)))
+        return _cover_polyline(graph, nodes)
+
+    return T, route
+
+
+def _cover_polyline(graph: GridGraph, nodes) -> np.ndarray:
+    N = graph.n_nodes
+    S, V = graph.domain.local_lengths
+    st = []
+    for v in nodes:
+        u, k = int(v) % N, _COVER[int(v) // N]
+        st.append(graph.coords[u] + np.array([k[0] * S, k[1] * V]))
+    return graph.domain.to_param(np.array(st))
+
+
+def closed_curve_distances(graph: GridGraph, classes, max_bases: int = 24) -> dict:
+    """Shortest closed grid curves of a torus in given homotopy classes.
+
+    Parameters
+    ----------
+    graph : GridGraph
+        A torus graph.
+    classes : iterable of (int, int)
+        Classes ``(a, b)`` with ``|a|, |b| <= 1``, not ``(0, 0)``.
+    max_bases : int
+        Base points tried per seam (a closed curve of class ``(a, b)`` with
+        ``a != 0`` crosses the seam ``s = 0``; with ``a = 0`` the seam ``v = 0``).
+
+    Returns
+    -------
+    dict
+        ``{(a, b): (length, polyline)}``, the polyline closed up to the shift
+        ``(a S, b V)`` in local coordinates, given in parameters.
+    """
+    N = graph.n_nodes
+    M = _cover_matrix(graph)
+    centre = _COVER.index((0, 0))
+    ns, nv = graph.shape
+    grid = graph.coords[:, :]
+    out = {}
+    for a, b in classes:
+        axis = 0 if a != 0 else 1
+        on_seam = np.flatnonzero(np.isclose(grid[:, axis], 0.0) & np.isfinite(grid[:, 0]))
+        on_seam = on_seam[np.linspace(0, len(on_seam) - 1, min(max_bases, len(on_seam))).astype(int)]
+        src = on_seam + N * centre
+        dist, node_route = _shortest(M, src, "scipy")
+        tgt = on_seam + N * _COVER.index((a, b))
+        d = dist[np.arange(len(src)), tgt]
+        k = int(np.argmin(d))
+        out[(a, b)] = (float(d[k]), _cover_polyline(graph, node_route(k, tgt[k])))
+    return out
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# continuous refinement
+# ---------------------------------------------------------------------------------------------------------------
 
 
 @dataclass(frozen=True)
@@ -100,7 +216,7 @@ class RefinedPath:
     Attributes
     ----------
     points : (n + 1, 2) ndarray
-        Vertices in parameter space ``(x1, x2)`` (reference arclength).
+        Vertices in parameter space ``(x1, x2)`` (reference arclength), unwrapped.
     length : float
         Richardson-extrapolated length.
     upper : float
@@ -128,8 +244,18 @@ def _resample(poly: np.ndarray, n: int) -> np.ndarray:
     return np.column_stack([np.interp(u, s, poly[:, 0]), np.interp(u, s, poly[:, 1])])
 
 
-def _end_side(domain: Domain, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, tuple[float, float]]:
-    """The boundary side that holds ``q``: base point, unit direction and the range of the slide."""
+def _side(domain: Domain, ground: int, q: np.ndarray):
+    """The boundary line through the end point ``q`` (parameters) of ground ``ground``.
+
+    Returns ``(base, direction, (lo, hi))`` in parameters: the end slides on
+    ``base + tau direction`` with ``lo <= tau <= hi``.
+    """
+    S, V = domain.local_lengths
+    if domain.kind in ("cylinder", "annulus"):
+        v = 0.0 if ground == 0 else V
+        base = domain.to_param(np.array([[0.0, v]]))[0]
+        e = domain.basis[:, 0] / np.linalg.norm(domain.basis[:, 0])
+        return base, e, (-np.inf, np.inf)
     L1, L2 = domain.lengths
     cands = [
         (abs(q[0]), np.array([0.0, 0.0]), np.array([0.0, 1.0]), (0.0, L2)),
@@ -137,7 +263,7 @@ def _end_side(domain: Domain, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, tu
         (abs(q[1]), np.array([0.0, 0.0]), np.array([1.0, 0.0]), (0.0, L1)),
         (abs(q[1] - L2), np.array([0.0, L2]), np.array([1.0, 0.0]), (0.0, L1)),
     ]
-    if domain.is_triangle:
+    if domain.kind == "triangle":
         cands.append((abs(q[1] - q[0]) / np.sqrt(2), np.array([0.0, 0.0]), np.array([1.0, 1.0]) / np.sqrt(2),
                       (0.0, L1 * np.sqrt(2))))
     _, base, direction, rng = min(cands, key=lambda c: c[0])
@@ -168,138 +294,143 @@ def _segment_derivatives(metric: Metric, comps, P: np.ndarray, Q: np.ndarray, st
     if not hessian:
         return f0, grad, None
     H = np.empty((m, 4, 4))
-    diag = (fp - 2 * f0 + fm) / step**2
-    H[:, np.arange(4), np.arange(4)] = diag.T
+    H[:, np.arange(4), np.arange(4)] = ((fp - 2 * f0 + fm) / step**2).T
     for k, (a, b) in enumerate(_PAIRS):
         q = f[9 + 4 * k : 13 + 4 * k]
-        hab = (q[0] - q[1] - q[2] + q[3]) / (4 * step**2)
-        H[:, a, b] = H[:, b, a] = hab
+        H[:, a, b] = H[:, b, a] = (q[0] - q[1] - q[2] + q[3]) / (4 * step**2)
     return f0, grad, H
 
 
 def _project(domain: Domain, X: np.ndarray) -> np.ndarray:
-    """Put polyline vertices back into the closed domain."""
-    L = np.array(domain.lengths)
-    X = np.clip(X, 0.0, L)
-    if domain.is_triangle:
+    """Put polyline vertices (parameters, unwrapped) back into the closed domain."""
+    if domain.kind == "torus":
+        return X
+    st = domain.to_local(X, wrap=False)
+    S, V = domain.local_lengths
+    ps, _ = domain.periodic
+    if not ps:
+        st[:, 0] = np.clip(st[:, 0], 0.0, S)
+    st[:, 1] = np.clip(st[:, 1], 0.0, V)
+    X = domain.to_param(st)
+    if domain.kind == "triangle":
         low = X[:, 1] < X[:, 0]
         X[low] = 0.5 * (X[low, 0] + X[low, 1])[:, None]
     return X
 
 
-def _optimize_level(domain: Domain, metric: Metric, X0: np.ndarray, free_end: bool, side, scale: float,
-                    max_iter: int = 60, polish: bool = True) -> np.ndarray:
-    """Minimize the exact length over the interior vertices (and the slide of a free end).
+class _Parametrization:
+    """Vertices of a polyline as an affine function ``X = X0 + M z`` of the unknowns ``z``.
 
-    Damped Newton: the Hessian of the length is block tridiagonal (vertex
-    ``k`` moves segments ``k - 1`` and ``k`` only), assembled from the
-    finite-difference Hessians of the segments and solved as a banded system.
+    Vertex modes: fixed (a crossing point), free (an interior vertex), sliding
+    on a boundary line (a free end), or, for a closed curve, the last vertex
+    equal to the first plus a period shift.
     """
-    from scipy.linalg import solveh_banded
 
+    def __init__(self, X0: np.ndarray, start_side, end_side, shift):
+        n = len(X0) - 1
+        self.n = n
+        self.X0 = X0.copy()
+        rows, cols, vals = [], [], []
+        nz = 0
+        self.slides = []
+
+        def free(k):
+            nonlocal nz
+            rows.extend([2 * k, 2 * k + 1])
+            cols.extend([nz, nz + 1])
+            vals.extend([1.0, 1.0])
+            nz += 2
+            return nz - 2
+
+        if shift is not None:  # closed curve: every vertex free, X_n = X_0 + shift
+            for k in range(n):
+                c = free(k)
+                if k == 0:
+                    rows.extend([2 * n, 2 * n + 1])
+                    cols.extend([c, c + 1])
+                    vals.extend([1.0, 1.0])
+            self.X0[:] = 0.0
+            self.X0[n] = shift
+        else:
+            for k in range(1, n):
+                free(k)
+            for k, side in ((0, start_side), (n, end_side)):
+                if side is None:
+                    continue
+                base, e, (lo, hi) = side
+                rows.extend([2 * k, 2 * k + 1])
+                cols.extend([nz, nz])
+                vals.extend([e[0], e[1]])
+                self.slides.append((nz, lo, hi))
+                self.X0[k] = base
+                nz += 1
+        self.nv = nz
+        self.M = sp.csr_matrix((vals, (rows, cols)), shape=(2 * (n + 1), max(nz, 1)))
+
+    def pack(self, X: np.ndarray) -> np.ndarray:
+        """Least-squares unknowns of vertices ``X`` (exact when ``X`` is of the form ``X0 + M z``).
+
+        Each row of ``M`` has at most one entry, so ``M^T M`` is diagonal.
+        """
+        if self.nv == 0:
+            return np.zeros(0)
+        diag = np.asarray(self.M.multiply(self.M).sum(axis=0)).ravel()
+        return self.clip((self.M.T @ (X - self.X0).ravel()) / diag)
+
+    def clip(self, z):
+        for k, lo, hi in self.slides:
+            z[k] = np.clip(z[k], lo, hi)
+        return z
+
+    def unpack(self, z: np.ndarray) -> np.ndarray:
+        return self.X0 + (self.M @ z).reshape(-1, 2)
+
+
+def _optimize_level(domain: Domain, metric: Metric, X0: np.ndarray, start_side, end_side, shift, scale: float,
+                    max_iter: int = 60) -> np.ndarray:
+    """Minimize the exact length of a polyline over its free coordinates: damped Newton, then L-BFGS polish."""
     comps = domain.comps
-    n = len(X0) - 1
-    nv = 2 * (n - 1) + (1 if free_end else 0)
-    if nv == 0:
+    par = _Parametrization(X0, start_side, end_side, shift)
+    if par.nv == 0:
         return X0
-    direction = side[1] if free_end else None
-    base = side[0] if free_end else None
-    lo, hi = side[2] if free_end else (0.0, 0.0)
+    n = par.n
     step = 1e-5 * scale
-    # map from the local coordinates (P1, P2, Q1, Q2) of each segment to the unknowns
-    idx = np.full((n, 4), -1)
-    k = np.arange(1, n)
-    idx[k - 1, 2], idx[k - 1, 3] = 2 * (k - 1), 2 * (k - 1) + 1  # vertex k ends segment k - 1
-    idx[k, 0], idx[k, 1] = 2 * (k - 1), 2 * (k - 1) + 1  # and starts segment k
+    # global coordinate indices of the local coordinates (P1, P2, Q1, Q2) of each segment
+    k = np.arange(n)
+    loc = np.column_stack([2 * k, 2 * k + 1, 2 * k + 2, 2 * k + 3])
+    M, Mt = par.M, par.M.T.tocsr()
+
+    def unpack(z):
+        return _project(domain, par.unpack(z))
+
+    def length(X):
+        return float(segment_lengths(metric, comps, X[:-1], X[1:]).sum())
 
     def assemble(X):
         f, gl, Hl = _segment_derivatives(metric, comps, X[:-1], X[1:], step)
-        Jl = np.zeros((n, 4))  # weights when a local coordinate is the slide of the free end
-        if free_end:
-            # Q of the last segment = base + tau * direction
-            gl[-1, 2] = gl[-1, 2] * direction[0] + gl[-1, 3] * direction[1]
-            Hq = Hl[-1]
-            J = np.array([[1, 0, 0], [0, 1, 0], [0, 0, direction[0]], [0, 0, direction[1]]], dtype=float)
-            H3 = J.T @ Hq @ J
-            Hl[-1] = 0.0
-            Hl[-1, :3, :3] = H3
-            gl[-1, 3] = 0.0
-            Jl[-1, 2] = 1.0
-        loc = idx.copy()
-        if free_end:
-            loc[-1, 2], loc[-1, 3] = nv - 1, -1
-        grad = np.zeros(nv)
-        valid = loc >= 0
-        np.add.at(grad, loc[valid], gl[valid])
-        # banded Hessian (upper form for solveh_banded): ab[u + i - j, j] = H[i, j]
-        u = 3
-        ab = np.zeros((u + 1, nv))
-        a_idx, b_idx = np.meshgrid(np.arange(4), np.arange(4), indexing="ij")
-        rows = loc[:, a_idx]
-        cols = loc[:, b_idx]
-        ok = (rows >= 0) & (cols >= 0) & (rows <= cols)
-        np.add.at(ab, (u + rows[ok] - cols[ok], cols[ok]), Hl[:, a_idx, b_idx][ok])
-        return float(f.sum()), grad, ab
+        gX = np.bincount(loc.ravel(), weights=gl.ravel(), minlength=2 * (n + 1))
+        r = np.repeat(loc, 4, axis=1).ravel()
+        c = np.tile(loc, (1, 4)).ravel()
+        HX = sp.csr_matrix((Hl.ravel(), (r, c)), shape=(2 * (n + 1), 2 * (n + 1)))
+        return float(f.sum()), Mt @ gX, (Mt @ HX @ M).tocsc()
 
-    def unpack(z):
-        X = X0.copy()
-        X[1:n] = z[: 2 * (n - 1)].reshape(-1, 2)
-        if free_end:
-            X[n] = base + z[-1] * direction
-        X[1:n] = _project(domain, X[1:n])
-        return X
-
-    def pack(X):
-        z = X[1:n].ravel()
-        if free_end:
-            z = np.append(z, np.clip(float(np.dot(X[n] - base, direction)), lo, hi))
-        return z
-
-    def _polish(X):
-        # quasi-Newton from the Newton point: robust where the length is not smooth (degenerate norms)
-        def fun(zz):
-            XX = unpack(zz)
-            f0, gl, _ = _segment_derivatives(metric, comps, XX[:-1], XX[1:], step * 1e-2, hessian=False)
-            if free_end:
-                gl[-1, 2] = gl[-1, 2] * direction[0] + gl[-1, 3] * direction[1]
-                gl[-1, 3] = 0.0
-            loc = idx.copy()
-            if free_end:
-                loc[-1, 2], loc[-1, 3] = nv - 1, -1
-            g = np.zeros(nv)
-            valid = loc >= 0
-            np.add.at(g, loc[valid], gl[valid])
-            return float(f0.sum()), g
-
-        L = np.array(domain.lengths)
-        bounds = [(0.0, L[0]), (0.0, L[1])] * (n - 1) + ([(lo, hi)] if free_end else [])
-        res = minimize(fun, pack(X), jac=True, method="L-BFGS-B", bounds=bounds,
-                       options={"maxiter": 500, "ftol": 1e-15, "gtol": 0.0})
-        Xp = unpack(res.x)
-        return Xp if res.fun < float(segment_lengths(metric, comps, X[:-1], X[1:]).sum()) else X
-
-    z = pack(X0)
+    z = par.pack(X0)
     X = unpack(z)
-    f, grad, ab = assemble(X)
+    f, grad, H = assemble(X)
     lam = 1e-8
+    eye = sp.identity(par.nv, format="csc")
     for _ in range(max_iter):
-        scale_h = max(np.abs(ab[-1]).max(), 1e-300)
-        while True:
-            abd = ab.copy()
-            abd[-1] += lam * scale_h
-            try:
-                dz = -solveh_banded(abd, grad)
+        hscale = max(float(np.abs(H.diagonal()).max()), 1e-300)
+        dz = spsolve(H + lam * hscale * eye, -grad)
+        if not np.all(np.isfinite(dz)) or dz @ grad >= 0:
+            lam = max(lam * 100, 1e-6)
+            if lam > 1e8:
                 break
-            except np.linalg.LinAlgError:
-                lam = max(lam * 100, 1e-6)
-        t = 1.0
-        accepted = False
+            continue
+        t, accepted = 1.0, False
         for _ls in range(30):
-            z_new = z + t * dz
-            if free_end:
-                z_new[-1] = np.clip(z_new[-1], lo, hi)
-            X_new = unpack(z_new)
-            f_new = float(segment_lengths(metric, comps, X_new[:-1], X_new[1:]).sum())
+            X_new = unpack(par.clip(z + t * dz))
+            f_new = length(X_new)
             if f_new <= f:
                 accepted = True
                 break
@@ -309,23 +440,37 @@ def _optimize_level(domain: Domain, metric: Metric, X0: np.ndarray, free_end: bo
             if lam > 1e8:
                 break
             continue
-        z = pack(X_new)
+        z = par.pack(X_new)
         done = f - f_new <= 1e-15 * max(f, 1e-300) or np.abs(t * dz).max() <= 1e-13 * scale
         X, f = X_new, f_new
         lam = max(lam / 10, 1e-12)
         if done:
             break
-        _, grad, ab = assemble(X)
-    if polish:
-        X = _polish(X)
-    return X
+        f, grad, H = assemble(X)
+
+    # quasi-Newton polish from the Newton point: robust where the length is not smooth (degenerate norms)
+    def fun(zz):
+        XX = unpack(par.clip(zz.copy()))
+        f0, gl, _ = _segment_derivatives(metric, comps, XX[:-1], XX[1:], step * 1e-2, hessian=False)
+        gX = np.bincount(loc.ravel(), weights=gl.ravel(), minlength=2 * (n + 1))
+        return float(f0.sum()), Mt @ gX
+
+    bounds = [(None, None)] * par.nv
+    for kk, lo, hi in par.slides:
+        bounds[kk] = (None if np.isinf(lo) else lo, None if np.isinf(hi) else hi)
+    res = minimize(fun, z, jac=True, method="L-BFGS-B", bounds=bounds,
+                   options={"maxiter": 500, "ftol": 1e-15, "gtol": 0.0})
+    Xp = unpack(par.clip(res.x))
+    return Xp if length(Xp) < f else X
 
 
 def refine(
     domain: Domain,
     metric: Metric,
     route: np.ndarray,
-    free_end: bool,
+    start_ground: int | None = None,
+    end_ground: int | None = None,
+    closed: bool = False,
     tol: float = 1e-3,
     start: int = 8,
     max_segments: int = 512,
@@ -339,11 +484,14 @@ def refine(
     metric : Metric
         The metric on M x M.
     route : (k, 2) ndarray
-        Grid route in parameter space; its first point is a crossing point,
-        its last a crossing point or, with ``free_end``, a boundary point.
-    free_end : bool
-        True when the last point may slide along its boundary side (a curve
-        ``gamma`` ending freely on the boundary or the diagonal, eq. (9)).
+        Grid route in parameters (unwrapped across seams).
+    start_ground, end_ground : int, optional
+        Ground (boundary part) on which the first / last point may slide: a
+        curve ``gamma`` ending freely on the boundary or the diagonal (eq. (9)).
+        ``None``: the end is a fixed crossing point.
+    closed : bool, default False
+        A closed curve: ``route[-1] - route[0]`` is a period shift and every
+        vertex is free.
     tol : float, default 1e-3
         Relative tolerance of the length.
     start, max_segments : int
@@ -354,12 +502,15 @@ def refine(
     RefinedPath
     """
     scale = float(max(domain.lengths))
-    side = _end_side(domain, route[-1]) if free_end else None
+    route = np.asarray(route, dtype=float)
+    shift = route[-1] - route[0] if closed else None
+    ss = _side(domain, start_ground, route[0]) if start_ground is not None else None
+    es = _side(domain, end_ground, route[-1]) if end_ground is not None else None
     X = _resample(route, start)
     history = []
     n = start
     while True:
-        X = _optimize_level(domain, metric, X, free_end, side, scale)
+        X = _optimize_level(domain, metric, X, ss, es, shift, scale)
         Ln = float(segment_lengths(metric, domain.comps, X[:-1], X[1:]).sum())
         history.append(Ln)
         if len(history) >= 2:
@@ -368,7 +519,6 @@ def refine(
                 return RefinedPath(X, history[-1] - corr, Ln, abs(corr), n)
         elif Ln == 0.0:
             return RefinedPath(X, 0.0, 0.0, 0.0, n)
-        # double: insert midpoints
         mid = 0.5 * (X[:-1] + X[1:])
         Y = np.empty((2 * n + 1, 2))
         Y[0::2], Y[1::2] = X, mid

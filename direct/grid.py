@@ -1,26 +1,40 @@
 r"""Pair domains of M x M and their metric-weighted grid graphs (section 5.1.1).
 
-For intervals, ``M x M`` minus the diagonal splits into the rectangles
-``I_i x I_j`` (``i != j``) and, for each ``i``, the two triangles of
-``I_i x I_i`` on either side of the diagonal.  The map
-``(x1, x2) -> (x2, x1)`` exchanges ``I_i x I_j`` with ``I_j x I_i`` (and the two
-triangles), preserves every metric of :mod:`direct.metric` and flips the sign
-of every crossing point, so each optimal family of curves on one half has a
-mirror image of the same length on the other: a :class:`Domain` is one half,
-``I_i x I_j`` with ``i < j`` or the triangle ``x1 < x2`` of ``I_i x I_i``, and
-the penalty is twice the sum over the halves.
+``M x M`` minus the diagonal splits into one connected piece per ordered pair
+of components.  The map ``(x1, x2) -> (x2, x1)`` exchanges ``M_i x M_j`` with
+``M_j x M_i``, preserves every metric of :mod:`direct.metric` and flips the
+sign of every crossing point, so an optimal family on one piece has a mirror
+image of the same length on the other.  A :class:`Domain` is therefore taken
+for ``i <= j`` only and counted twice, except ``S^1 x S^1 \ Delta`` (a circle
+with itself), which the map sends to itself.  The five kinds:
+
+=============  ===============================  ==================  ===============================
+kind           piece                            counted             boundary (where gamma ends)
+=============  ===============================  ==================  ===============================
+``rect``       ``I_i x I_j``                    twice               the four sides: one ground
+``triangle``   ``{x1 < x2}`` of ``I_i x I_i``   twice (two halves)  sides and diagonal: one ground
+``cylinder``   ``S^1 x I`` (or ``I x S^1``)     twice               the two end circles: grounds 0, 1
+``annulus``    ``S^1 x S^1 \ Delta``            once                the two sides of the diagonal: 0, 1
+``torus``      ``S^1_i x S^1_j``                twice               none
+=============  ===============================  ==================  ===============================
+
+Each domain has *local* coordinates ``(s, v)``, ``s`` along the circle when
+there is one (periodic), in which it is the rectangle ``[0, S] x [0, V]``;
+parameters are ``(x1, x2) = s e_s + v e_v``.  For the annulus ``x1 = s``,
+``x2 = s + v`` with ``0 < v < L``: ``v -> 0`` is the side ``x2 > x1`` of the
+diagonal (``B_0^-`` of section 3.3.3), ``v -> L`` the other side.
 
 The grid graph of a domain has
 
-* a node per grid point strictly inside the domain (uniform steps ``h1, h2``);
-* one *ground* node (index 0) for the boundary: the sides of the rectangle
-  and, for a triangle, the diagonal, where the curves ``gamma`` may end freely
-  (eq. (9));
+* a node per grid point strictly inside (uniform steps in ``(s, v)``);
+* a *ground* node per boundary part (indices ``0 .. n_grounds - 1``);
 * a node per crossing point, joined to the grid nodes of its neighbourhood
-  and to the other crossing points nearby;
-* an edge per stencil move (8 or 16 neighbours) whose weight is the exact
+  and to the crossing points nearby;
+* an edge per stencil move (8, 16 or 32 neighbours) whose weight is the exact
   metric length of the straight segment (:func:`direct.metric.segment_lengths`).
-  A move that leaves the domain is cut where it leaves and joined to ground.
+  A move that leaves the domain is cut where it leaves and joined to that
+  ground.  On periodic axes moves wrap around; each edge records how many
+  times it crosses the seams ``s = 0`` and (torus) ``v = 0``.
 """
 
 from __future__ import annotations
@@ -67,7 +81,7 @@ def stencil(neighbours: int) -> np.ndarray:
 
 @dataclass(frozen=True, eq=False)
 class Domain:
-    """One half of a connected component of ``M x M \\ Delta`` (see the module docstring).
+    """One piece of ``M x M \\ Delta`` with its crossing points (see the module docstring).
 
     Parameters
     ----------
@@ -90,38 +104,110 @@ class Domain:
     crossing_ids: np.ndarray
 
     @property
+    def kind(self) -> str:
+        """One of ``rect``, ``triangle``, ``cylinder``, ``annulus``, ``torus``."""
+        c1, c2 = (c.closed for c in self.comps)
+        if self.pair[0] == self.pair[1]:
+            return "annulus" if c1 else "triangle"
+        if c1 and c2:
+            return "torus"
+        return "cylinder" if (c1 or c2) else "rect"
+
+    @property
     def is_triangle(self) -> bool:
         """True for the half ``x1 < x2`` of ``I_i x I_i``."""
-        return self.pair[0] == self.pair[1]
+        return self.kind == "triangle"
+
+    @property
+    def multiplicity(self) -> int:
+        """How many pieces of ``M x M`` this domain stands for (2 with its mirror image, 1 for the annulus)."""
+        return 1 if self.kind == "annulus" else 2
 
     @property
     def lengths(self) -> tuple[float, float]:
-        """Side lengths ``(L_i, L_j)`` in reference arclength."""
+        """Parameter lengths ``(L_i, L_j)`` in reference arclength."""
         return (self.comps[0].length, self.comps[1].length)
 
-    def exit_time(self, p: np.ndarray, d: np.ndarray) -> np.ndarray:
-        """First ``t >= 0`` at which ``p + t d`` reaches the boundary (inf if never).
+    @cached_property
+    def basis(self) -> np.ndarray:
+        """2 x 2 matrix whose columns ``e_s, e_v`` give ``(x1, x2) = s e_s + v e_v``."""
+        if self.kind == "annulus":
+            return np.array([[1.0, 0.0], [1.0, 1.0]])
+        if self.kind == "cylinder" and not self.comps[0].closed:
+            return np.array([[0.0, 1.0], [1.0, 0.0]])  # s runs along the circle x2
+        return np.eye(2)
 
-        Parameters
-        ----------
-        p, d : (m, 2) ndarray
-            Start points inside the domain and directions.
+    @property
+    def local_lengths(self) -> tuple[float, float]:
+        """``(S, V)``: the domain is ``[0, S] x [0, V]`` in local coordinates."""
+        L1, L2 = self.lengths
+        if self.kind == "cylinder" and not self.comps[0].closed:
+            return (L2, L1)
+        return (L1, L2)
+
+    @property
+    def periodic(self) -> tuple[bool, bool]:
+        """Whether ``s`` and ``v`` are periodic."""
+        k = self.kind
+        return (k in ("cylinder", "annulus", "torus"), k == "torus")
+
+    @property
+    def n_grounds(self) -> int:
+        """Number of boundary parts (ground nodes)."""
+        return {"rect": 1, "triangle": 1, "cylinder": 2, "annulus": 2, "torus": 0}[self.kind]
+
+    def to_local(self, x: np.ndarray, wrap: bool = True) -> np.ndarray:
+        """Local coordinates ``(s, v)`` of parameters ``(x1, x2)``; periodic ones wrapped into ``[0, S)``."""
+        x = np.asarray(x, dtype=float).reshape(-1, 2)
+        st = x @ np.linalg.inv(self.basis).T
+        if wrap:
+            S, V = self.local_lengths
+            ps, pv = self.periodic
+            if ps:
+                st[:, 0] = np.mod(st[:, 0], S)
+            if pv or self.kind == "annulus":
+                st[:, 1] = np.mod(st[:, 1], V)
+        return st
+
+    def to_param(self, st: np.ndarray) -> np.ndarray:
+        """Parameters ``(x1, x2)`` of local coordinates (not wrapped)."""
+        return np.asarray(st, dtype=float).reshape(-1, 2) @ self.basis.T
+
+    def exit_time(self, p: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """First ``t >= 0`` at which ``p + t d`` (local coordinates) reaches the boundary, and which ground.
+
+        Returns ``inf`` where it never does (periodic directions).
         """
-        L = np.array(self.lengths)
+        S, V = self.local_lengths
+        ps, pv = self.periodic
+        n = len(p)
+        t = np.full(n, np.inf)
+        which = np.zeros(n, dtype=np.int64)
         with np.errstate(divide="ignore", invalid="ignore"):
-            up = np.where(d > 0, (L - p) / d, np.inf)
-            down = np.where(d < 0, -p / d, np.inf)
-            t = np.minimum(up, down).min(axis=1)
-            if self.is_triangle:
+            if not ps:
+                t = np.minimum(t, np.where(d[:, 0] > 0, (S - p[:, 0]) / d[:, 0], np.inf))
+                t = np.minimum(t, np.where(d[:, 0] < 0, -p[:, 0] / d[:, 0], np.inf))
+            if not pv:
+                up = np.where(d[:, 1] > 0, (V - p[:, 1]) / d[:, 1], np.inf)
+                down = np.where(d[:, 1] < 0, -p[:, 1] / d[:, 1], np.inf)
+                if self.n_grounds == 2:
+                    which = np.where(up < np.minimum(down, t), 1, 0)
+                t = np.minimum(t, np.minimum(up, down))
+            if self.kind == "triangle":
                 dd = d[:, 1] - d[:, 0]
                 t = np.minimum(t, np.where(dd < 0, (p[:, 1] - p[:, 0]) / -dd, np.inf))
-        return np.maximum(t, 0.0)
+        return np.maximum(t, 0.0), which
 
     def boundary_distance(self, p: np.ndarray) -> np.ndarray:
-        """Euclidean distance in parameter space from points to the boundary."""
-        L = np.array(self.lengths)
-        dist = np.minimum(p, L - p).min(axis=1)
-        if self.is_triangle:
+        """Euclidean distance in local coordinates from points to the boundary (inf on the torus)."""
+        S, V = self.local_lengths
+        ps, pv = self.periodic
+        dist = np.full(len(p), np.inf)
+        if not ps:
+            dist = np.minimum(dist, np.minimum(p[:, 0], S - p[:, 0]))
+        if not pv:
+            dist = np.minimum(dist, np.minimum(p[:, 1], V - p[:, 1]))
+        if self.kind == "triangle":
             dist = np.minimum(dist, (p[:, 1] - p[:, 0]) / np.sqrt(2))
         return dist
 
@@ -134,16 +220,22 @@ class GridGraph:
     ----------
     domain : Domain
     h : (2,) ndarray
-        Grid steps along ``x1`` and ``x2`` (reference arclength).
+        Grid steps along ``s`` and ``v`` (reference arclength).
     coords : (n_nodes, 2) ndarray
-        Parameter coordinates of every node; row 0 (ground) is NaN.
+        Local coordinates of every node; ground rows are NaN.
     crossing_nodes : (n_points,) ndarray of int
         Node of each crossing point of the domain.
     exit_points : (n_nodes, 2) ndarray
-        For a node joined to ground, where its cheapest ground edge meets the
-        boundary (NaN otherwise).
-    matrix : scipy.sparse.csr_matrix
-        Symmetric weighted adjacency matrix (upper triangle stored).
+        For a node joined to a ground, where its cheapest edge to that ground
+        meets the boundary, in local coordinates, per ground (NaN otherwise):
+        shape ``(n_grounds, n_nodes, 2)``.
+    rows, cols, weights : ndarray
+        The edges (``rows < cols``) and their exact metric lengths.
+    winds : (n_edges, 2) ndarray of int
+        Signed number of times each edge, taken from ``rows`` to ``cols``,
+        crosses the seams ``s = 0`` and ``v = 0`` of periodic axes.
+    shape : tuple of int
+        Number of grid cells along ``s`` and ``v``.
     """
 
     domain: Domain
@@ -154,37 +246,83 @@ class GridGraph:
     rows: np.ndarray
     cols: np.ndarray
     weights: np.ndarray
+    winds: np.ndarray
     neighbours: int
     metric: Metric
     shape: tuple[int, int] = field(default=(0, 0))
 
     @property
     def n_nodes(self) -> int:
-        """Number of nodes, ground included."""
+        """Number of nodes, grounds included."""
         return len(self.coords)
+
+    @property
+    def n_grounds(self) -> int:
+        """Number of ground nodes (they come first)."""
+        return self.domain.n_grounds
 
     @cached_property
     def matrix(self) -> sp.csr_matrix:
-        """Weighted adjacency matrix for :func:`scipy.sparse.csgraph.dijkstra` (``directed=False``)."""
-        return sp.csr_matrix((self.weights, (self.rows, self.cols)), shape=(self.n_nodes, self.n_nodes))
+        """Directed weighted adjacency matrix for :func:`scipy.sparse.csgraph.dijkstra`.
 
-    def node_path(self, nodes: list[int] | np.ndarray, end_on_ground: bool) -> np.ndarray:
-        """Parameter-space polyline of a node path (ground replaced by its exit point)."""
-        nodes = [int(v) for v in nodes]
-        pts = [self.coords[v] for v in nodes if v != 0]
-        if end_on_ground:
-            pts.append(self.exit_points[nodes[-2] if nodes[-1] == 0 else nodes[0]])
-        return np.array(pts)
+        Ground ``g`` is split in two so that no path runs *through* the
+        boundary: node ``g`` only receives (a curve ending on that boundary)
+        and node ``n_nodes + g`` only emits (a curve starting there).
+        """
+        ng = self.n_grounds
+        r, c, w = self.rows, self.cols, self.weights
+        to_ground = r < ng  # rows < cols, so a ground is always the row
+        inner = ~to_ground
+        rows = np.concatenate([r[inner], c[inner], c[to_ground], self.n_nodes + r[to_ground]])
+        cols = np.concatenate([c[inner], r[inner], r[to_ground], c[to_ground]])
+        data = np.concatenate([w[inner], w[inner], w[to_ground], w[to_ground]])
+        n = self.n_nodes + ng
+        return sp.csr_matrix((data, (rows, cols)), shape=(n, n))
+
+    @property
+    def sources(self) -> np.ndarray:
+        """Start node of each terminal: the emitting copy of each ground, then the crossing points."""
+        return np.concatenate([self.n_nodes + np.arange(self.n_grounds), self.crossing_nodes])
+
+    @property
+    def targets(self) -> np.ndarray:
+        """End node of each terminal: the receiving copy of each ground, then the crossing points."""
+        return np.concatenate([np.arange(self.n_grounds), self.crossing_nodes])
+
+    def node_path(self, nodes) -> np.ndarray:
+        """Parameter-space polyline of a node path, unwrapped across seams.
+
+        A ground at either end is replaced by the point where the path meets
+        that boundary.
+        """
+        ng = self.n_grounds
+        nodes = [int(v) - self.n_nodes if int(v) >= self.n_nodes else int(v) for v in nodes]  # emitting grounds
+        pts = []
+        if nodes[0] < ng:
+            pts.append(self.exit_points[nodes[0], nodes[1]])
+        pts += [self.coords[v] for v in nodes if v >= ng]
+        if nodes[-1] < ng:
+            pts.append(self.exit_points[nodes[-1], nodes[-2]])
+        st = np.array(pts)
+        S, V = self.domain.local_lengths
+        for axis, (per, period) in enumerate(zip(self.domain.periodic, (S, V))):
+            if per and len(st) > 1:
+                step = np.diff(st[:, axis])
+                step -= period * np.round(step / period)
+                st[1:, axis] = st[0, axis] + np.cumsum(step)
+        return self.domain.to_param(st)
 
 
-def _dedupe_min(r: np.ndarray, c: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Keep the lightest of parallel edges (sparse matrices would add them up)."""
-    a, b = np.minimum(r, c), np.maximum(r, c)
+def _dedupe_min(r, c, w, k):
+    """Keep the lightest of parallel edges (sparse matrices would add them up); orient rows < cols."""
+    swap = r > c
+    a, b = np.where(swap, c, r), np.where(swap, r, c)
+    k = np.where(swap[:, None], -k, k)
     order = np.lexsort((w, b, a))
-    a, b, w = a[order], b[order], w[order]
+    a, b, w, k = a[order], b[order], w[order], k[order]
     first = np.ones(len(a), dtype=bool)
     first[1:] = (a[1:] != a[:-1]) | (b[1:] != b[:-1])
-    return a[first], b[first], w[first], order[first]
+    return a[first], b[first], w[first], k[first], order[first]
 
 
 def build_graph(domain: Domain, metric: Metric, resolution: int = 96, neighbours: int = 16, window: int = 2) -> GridGraph:
@@ -206,58 +344,84 @@ def build_graph(domain: Domain, metric: Metric, resolution: int = 96, neighbours
     Returns
     -------
     GridGraph
+
+    Notes
+    -----
+    On a torus, distinct edges may join the same two nodes across different
+    seams; only the lightest is kept.  This is harmless as long as the grid
+    has at least ``2 * radius + 1`` cells around each circle (ensured).
     """
-    L1, L2 = domain.lengths
-    if domain.is_triangle:
-        n1 = n2 = max(int(resolution), 3)
+    S, V = domain.local_lengths
+    ps, pv = domain.periodic
+    ng = domain.n_grounds
+    radius = {4: 1, 8: 1, 16: 2, 32: 3}.get(neighbours, 3)
+    if domain.kind in ("triangle", "annulus"):
+        ns = nv = max(int(resolution), 3)
     else:
-        h0 = max(L1, L2) / max(int(resolution), 2)
-        n1, n2 = max(int(np.ceil(L1 / h0)), 2), max(int(np.ceil(L2 / h0)), 2)
-    h = np.array([L1 / n1, L2 / n2])
-    # interior grid nodes, numbered from 1 (0 is ground)
-    I, J = np.meshgrid(np.arange(1, n1), np.arange(1, n2), indexing="ij")
-    inside = np.ones_like(I, dtype=bool)
-    if domain.is_triangle:
-        inside = J > I
-    ii, jj = I[inside], J[inside]
-    node_of = np.full((n1 + 1, n2 + 1), -1, dtype=np.int64)
-    node_of[ii, jj] = np.arange(1, len(ii) + 1)
-    grid_xy = np.column_stack([ii * h[0], jj * h[1]])
+        h0 = max(S, V) / max(int(resolution), 2)
+        ns, nv = max(int(np.ceil(S / h0)), 2), max(int(np.ceil(V / h0)), 2)
+    if ps:
+        ns = max(ns, 2 * radius + 3)
+    if pv:
+        nv = max(nv, 2 * radius + 3)
+    h = np.array([S / ns, V / nv])
+    # grid nodes: a in [0, ns) if periodic else (0, ns); same for b
+    a_range = np.arange(0, ns) if ps else np.arange(1, ns)
+    b_range = np.arange(0, nv) if pv else np.arange(1, nv)
+    A, B = np.meshgrid(a_range, b_range, indexing="ij")
+    inside = (B > A) if domain.kind == "triangle" else np.ones_like(A, dtype=bool)
+    ii, jj = A[inside], B[inside]
+    node_of = np.full((ns + 1, nv + 1), -1, dtype=np.int64)
+    node_of[ii, jj] = np.arange(ng, ng + len(ii))
+    if ps:
+        node_of[ns, :] = node_of[0, :]
+    if pv:
+        node_of[:, nv] = node_of[:, 0]
+    grid_st = np.column_stack([ii * h[0], jj * h[1]])
     n_grid = len(ii)
-    pts = np.asarray(domain.points, dtype=float).reshape(-1, 2)
+    pts = domain.to_local(domain.points) if len(domain.points) else np.empty((0, 2))
     n_pts = len(pts)
-    cross_nodes = np.arange(n_grid + 1, n_grid + 1 + n_pts)
-    coords = np.vstack([np.full((1, 2), np.nan), grid_xy, pts])
+    cross_nodes = np.arange(ng + n_grid, ng + n_grid + n_pts)
+    coords = np.vstack([np.full((ng, 2), np.nan), grid_st, pts])
 
-    P_list, Q_list, A_list, B_list, ground_list = [], [], [], [], []
+    A_l, B_l, P_l, Q_l, G_l, K_l = [], [], [], [], [], []
 
-    def add(p_idx, q_idx, P, Q, ground):
-        A_list.append(p_idx)
-        B_list.append(q_idx)
-        P_list.append(P)
-        Q_list.append(Q)
-        ground_list.append(ground)
+    def add(p_idx, q_idx, P, Q, ground, winds):
+        A_l.append(p_idx)
+        B_l.append(q_idx)
+        P_l.append(P)
+        Q_l.append(Q)
+        G_l.append(ground)
+        K_l.append(winds)
+
+    def target(ti, tj):
+        """Node at grid index (ti, tj) after wrapping, with the seam count; -1 outside or on the boundary."""
+        ki = np.floor_divide(ti, ns) if ps else np.zeros_like(ti)
+        kj = np.floor_divide(tj, nv) if pv else np.zeros_like(tj)
+        ti, tj = ti - ki * ns, tj - kj * nv
+        ok = (ti >= 0) & (ti <= ns) & (tj >= 0) & (tj <= nv)
+        q = np.full(len(ti), -1, dtype=np.int64)
+        q[ok] = node_of[ti[ok], tj[ok]]
+        return q, np.column_stack([ki, kj])
 
     half = stencil(neighbours)
     full = np.vstack([half, -half])
-    src = np.arange(1, n_grid + 1)
+    src = np.arange(ng, ng + n_grid)
     for k, (di, dj) in enumerate(full):
-        ti, tj = ii + di, jj + dj
-        ok = (ti >= 0) & (ti <= n1) & (tj >= 0) & (tj <= n2)
-        q = np.full(n_grid, -1, dtype=np.int64)
-        q[ok] = node_of[ti[ok], tj[ok]]
-        interior = q > 0
+        q, kk = target(ii + di, jj + dj)
+        interior = q >= ng
         if k < len(half):  # each interior edge once
-            add(src[interior], q[interior], grid_xy[interior], coords[q[interior]], False)
+            P = grid_st[interior]
+            add(src[interior], q[interior], P, P + np.array([di, dj]) * h, False, kk[interior])
         out = ~interior
         if out.any():
-            p = grid_xy[out]
+            p = grid_st[out]
             d = np.broadcast_to(np.array([di, dj]) * h, p.shape)
-            t = np.minimum(domain.exit_time(p, d), 1.0)
-            add(src[out], np.zeros(out.sum(), dtype=np.int64), p, p + t[:, None] * d, True)
+            t, which = domain.exit_time(p, d)
+            t = np.minimum(t, 1.0)
+            add(src[out], which, p, p + t[:, None] * d, True, np.zeros((out.sum(), 2), dtype=np.int64))
 
     if n_pts:
-        # crossing points: to grid nodes within the window, or to ground where the move leaves
         ci = np.floor(pts[:, 0] / h[0]).astype(int)
         cj = np.floor(pts[:, 1] / h[1]).astype(int)
         offs = np.arange(-window + 1, window + 1)
@@ -265,44 +429,47 @@ def build_graph(domain: Domain, metric: Metric, resolution: int = 96, neighbours
         ti = (ci[:, None] + oi.ravel()[None, :]).ravel()
         tj = (cj[:, None] + oj.ravel()[None, :]).ravel()
         owner = np.repeat(np.arange(n_pts), oi.size)
-        ok = (ti >= 0) & (ti <= n1) & (tj >= 0) & (tj <= n2)
-        q = np.full(len(ti), -1, dtype=np.int64)
-        q[ok] = node_of[ti[ok], tj[ok]]
-        interior = q > 0
-        add(cross_nodes[owner[interior]], q[interior], pts[owner[interior]], coords[q[interior]], False)
-        # straight moves to ground: towards each window node outside, and along the axes / to the diagonal
-        target = np.column_stack([ti * h[0], tj * h[1]])[~interior]
-        p = pts[owner[~interior]]
-        dirs = [target - p]
-        starts = [p]
-        axes = np.array([[1, 0], [-1, 0], [0, 1], [0, -1], [1, -1]], dtype=float)
+        q, kk = target(ti, tj)
+        interior = q >= ng
+        tgt = np.column_stack([ti * h[0], tj * h[1]])
+        add(cross_nodes[owner[interior]], q[interior], pts[owner[interior]], tgt[interior], False, kk[interior])
+        # straight moves to a ground: towards each window node outside, along the local axes, to the diagonal
+        starts, dirs, owners = [pts[owner[~interior]]], [tgt[~interior] - pts[owner[~interior]]], [owner[~interior]]
+        axes = [[1, 0], [-1, 0], [0, 1], [0, -1]] + ([[1, -1]] if domain.kind == "triangle" else [])
         for ax in axes:
-            if ax[0] == 1 and ax[1] == -1 and not domain.is_triangle:
-                continue
             starts.append(pts)
-            dirs.append(np.broadcast_to(ax, pts.shape))
-        p = np.vstack(starts)
-        d = np.vstack(dirs)
-        own = np.concatenate([owner[~interior]] + [np.arange(n_pts)] * (len(starts) - 1))
-        t = domain.exit_time(p, d)
+            dirs.append(np.broadcast_to(np.array(ax, dtype=float), pts.shape))
+            owners.append(np.arange(n_pts))
+        p, d, own = np.vstack(starts), np.vstack(dirs), np.concatenate(owners)
+        t, which = domain.exit_time(p, d)
         good = np.isfinite(t)
-        add(cross_nodes[own[good]], np.zeros(good.sum(), dtype=np.int64), p[good], p[good] + t[good, None] * d[good], True)
-        # crossing point to crossing point when close
+        add(cross_nodes[own[good]], which[good], p[good], p[good] + t[good, None] * d[good], True,
+            np.zeros((good.sum(), 2), dtype=np.int64))
         if n_pts > 1:
             a, b = np.triu_indices(n_pts, 1)
-            near = (np.abs(pts[a] - pts[b]) <= window * h).all(axis=1)
-            add(cross_nodes[a[near]], cross_nodes[b[near]], pts[a[near]], pts[b[near]], False)
+            delta = pts[b] - pts[a]
+            shift = np.zeros_like(delta)
+            for axis, (per, period) in enumerate(zip((ps, pv), (S, V))):
+                if per:
+                    shift[:, axis] = -period * np.round(delta[:, axis] / period)
+            delta = delta + shift
+            near = (np.abs(delta) <= window * h).all(axis=1)
+            # the move lands on the copy of b shifted by `shift`: that many periods across the seams
+            kk = np.column_stack([np.round(shift[:, 0] / S) if ps else 0 * shift[:, 0],
+                                  np.round(shift[:, 1] / V) if pv else 0 * shift[:, 1]]).astype(np.int64)
+            add(cross_nodes[a[near]], cross_nodes[b[near]], pts[a[near]], pts[a[near]] + delta[near], False, kk[near])
 
-    A = np.concatenate(A_list)
-    B = np.concatenate(B_list)
-    P = np.vstack(P_list)
-    Q = np.vstack(Q_list)
-    ground = np.concatenate([np.full(len(x), gflag) for x, gflag in zip(A_list, ground_list)])
-    w = np.maximum(segment_lengths(metric, domain.comps, P, Q), _TINY)
-    r, c, w, kept = _dedupe_min(A, B, w)
-    exit_points = np.full((len(coords), 2), np.nan)
+    rows = np.concatenate(A_l)
+    cols = np.concatenate(B_l)
+    P = np.vstack(P_l)
+    Q = np.vstack(Q_l)
+    ground = np.concatenate([np.full(len(x), flag) for x, flag in zip(A_l, G_l)])
+    winds = np.vstack(K_l).astype(np.int64)
+    w = np.maximum(segment_lengths(metric, domain.comps, domain.to_param(P), domain.to_param(Q)), _TINY)
+    r, c, w, winds, kept = _dedupe_min(rows, cols, w, winds)
+    exit_points = np.full((max(ng, 1), len(coords), 2), np.nan)
     g = ground[kept]
-    exit_points[c[g]] = Q[kept][g]  # ground is node 0, so it is the row of a ground edge
+    exit_points[r[g], c[g]] = Q[kept][g]  # grounds have the smallest indices, so they are the rows
     return GridGraph(
         domain=domain,
         h=h,
@@ -312,7 +479,8 @@ def build_graph(domain: Domain, metric: Metric, resolution: int = 96, neighbours
         rows=r,
         cols=c,
         weights=w,
+        winds=winds,
         neighbours=neighbours,
         metric=metric,
-        shape=(n1, n2),
+        shape=(ns, nv),
     )

@@ -29,7 +29,7 @@ import itertools
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-__all__ = ["solve", "brute_force"]
+__all__ = ["solve", "brute_force", "solve_flow", "solve_torus"]
 
 
 def solve(A_pm: np.ndarray, A_p0: np.ndarray, A_0m: np.ndarray) -> tuple[float, list[tuple[int | None, int | None]]]:
@@ -114,3 +114,129 @@ def brute_force(A_pm: np.ndarray, A_p0: np.ndarray, A_0m: np.ndarray) -> float:
                 cost += sum(A_0m[j] for j in range(nneg) if j not in minus)
                 best = min(best, cost)
     return float(best)
+
+
+def solve_flow(cost: np.ndarray, supply: np.ndarray) -> tuple[float, list[tuple[int, int, int]]]:
+    """Program (34) with prescribed boundary fluxes: a min-cost flow between terminals.
+
+    For M with circles the curves ``gamma`` may have to cross a domain from
+    one boundary part to another a prescribed number of times (eq. (10) and
+    the flux conditions of eq. (6)); see :mod:`direct.penalty`.  Each
+    terminal ``u`` (a boundary part or a crossing point) emits ``supply[u]``
+    curves net (negative: receives); a curve from ``u`` to ``v`` costs
+    ``cost[u, v]``.  The node-arc incidence matrix is totally unimodular, so
+    the linear program has an integral optimal vertex, found by the HiGHS
+    dual simplex.  With a single boundary part and ``supply = n+ - n-`` on it
+    this is exactly program (34).
+
+    Parameters
+    ----------
+    cost : (n, n) array_like of float
+        ``cost[u, v]``: length of the best curve from ``u`` to ``v`` (inf: none).
+    supply : (n,) array_like of int
+        Net number of curves starting at each terminal; sums to zero.
+
+    Returns
+    -------
+    value : float
+        The least total length.
+    arcs : list of (u, v, count)
+        ``count`` curves run from ``u`` to ``v``.
+
+    Raises
+    ------
+    DirectError
+        If no family of curves satisfies the supplies.
+
+    Examples
+    --------
+    >>> solve_flow([[0, 1.0, 0.4], [1.0, 0, 0.7], [0.4, 0.7, 0]], [0, 1, -1])  # ground, -, +
+    (1.0, [(1, 2, 1)])
+    """
+    from scipy.optimize import linprog
+
+    from .errors import DirectError
+
+    C = np.asarray(cost, dtype=float)
+    b = np.asarray(supply, dtype=float)
+    n = len(b)
+    if b.sum() != 0:
+        raise DirectError(f"supplies must add up to zero, got {b.tolist()}")
+    if not np.any(b):
+        return 0.0, []
+    u, v = np.nonzero(~np.eye(n, dtype=bool) & np.isfinite(C))
+    A = np.zeros((n, len(u)))
+    A[u, np.arange(len(u))] = 1.0
+    A[v, np.arange(len(u))] -= 1.0
+    res = linprog(C[u, v], A_eq=A, b_eq=b, bounds=(0, None), method="highs-ds")
+    if res.status != 0:
+        raise DirectError(f"no family of curves meets the boundary conditions ({res.message})")
+    flow = np.rint(res.x).astype(int)
+    arcs = [(int(u[k]), int(v[k]), int(flow[k])) for k in np.flatnonzero(flow)]
+    return float(C[u, v] @ flow), arcs
+
+
+def solve_torus(
+    cost: dict, closed: dict, npos: int, nneg: int, winds: tuple[int, int]
+) -> tuple[float, list[tuple]]:
+    """Program (34) on a torus ``S^1 x S^1``: a matching with prescribed homology.
+
+    On the torus (two distinct circles of M) there is no boundary; the
+    conditions of eq. (6) on the two non-contractible loops fix the total
+    signed number of times the curves cross each seam.  Curves join negative
+    to positive points, each in a homotopy class ``(k1, k2)`` (how many times
+    it crosses the seams), and closed curves ``gamma: S^1 -> M x M`` (section
+    3.3.4) add their classes.  Solved as a small integer program by
+    :func:`scipy.optimize.milp` (HiGHS).
+
+    Parameters
+    ----------
+    cost : dict
+        ``cost[(i, j, k)]``: length from negative point ``j`` to positive point
+        ``i`` in class ``k = (k1, k2)``.
+    closed : dict
+        ``closed[k]``: length of the shortest closed curve of class ``k``.
+    npos, nneg : int
+        Numbers of positive and negative points (equal on a torus).
+    winds : tuple of int
+        Prescribed total seam crossings ``(K1, K2)``.
+
+    Returns
+    -------
+    value : float
+    chosen : list of (key, count)
+        ``key`` is ``(i, j, k)`` for a path, ``("closed", k)`` for closed curves.
+    """
+    from scipy.optimize import Bounds, LinearConstraint, milp
+
+    from .errors import DirectError
+
+    keys = [k for k, c in cost.items() if np.isfinite(c)] + [("closed", k) for k, c in closed.items() if np.isfinite(c)]
+    if not keys:
+        if winds == (0, 0) and npos == nneg == 0:
+            return 0.0, []
+        raise DirectError("no family of curves meets the conditions on the torus")
+    c = np.array([cost[k] if k[0] != "closed" else closed[k[1]] for k in keys])
+    rows = []
+    lo, hi = [], []
+    for i in range(npos):
+        rows.append([1.0 if (k[0] != "closed" and k[0] == i) else 0.0 for k in keys])
+        lo.append(1), hi.append(1)
+    for j in range(nneg):
+        rows.append([1.0 if (k[0] != "closed" and k[1] == j) else 0.0 for k in keys])
+        lo.append(1), hi.append(1)
+    for axis in (0, 1):
+        rows.append([float(k[2][axis]) if k[0] != "closed" else float(k[1][axis]) for k in keys])
+        lo.append(winds[axis]), hi.append(winds[axis])
+    ub = np.array([1.0 if k[0] != "closed" else np.inf for k in keys])
+    res = milp(
+        c,
+        constraints=LinearConstraint(np.array(rows), lo, hi),
+        integrality=np.ones(len(keys)),
+        bounds=Bounds(np.zeros(len(keys)), ub),
+    )
+    if res.status != 0:
+        raise DirectError(f"no family of curves meets the conditions on the torus ({res.message})")
+    x = np.rint(res.x).astype(int)
+    chosen = [(keys[k], int(x[k])) for k in np.flatnonzero(x)]
+    return float(c @ x), chosen

@@ -20,13 +20,15 @@ from typing import Any
 import numpy as np
 
 from .crossings import Crossing, find_crossings
-from .errors import DirectError, NotSupportedError
-from .geodesics import Backend, grid_distances, refine
-from .grid import Domain, GridGraph, build_graph
-from .matching import solve
+from .errors import DirectError
+from .geodesics import Backend, closed_curve_distances, grid_distances, refine, torus_distances
+from .grid import Domain, build_graph
+from .matching import solve as solve_assignment
+from .matching import solve_flow, solve_torus
 from .metric import Metric, MetricName, get_metric
 from .scene import Scene
 from .scenes import resolve
+from .topology import turning_number, winding_number
 
 __all__ = ["penalty", "Penalty", "Pair"]
 
@@ -53,7 +55,12 @@ class Pair:
     error_estimate : float
         Estimated absolute error of ``length``.
     path : (k, 2) ndarray
-        The curve as a polyline in parameters ``(x1, x2)``, from ``gamma(0)`` to ``gamma(1)``.
+        The curve as a polyline in parameters ``(x1, x2)``, from ``gamma(0)``
+        to ``gamma(1)``; on a circle the parameter is unwrapped (read it
+        modulo the circle's length).
+    closed : bool
+        True for a closed curve ``gamma: S^1 -> M x M`` (section 3.3.4); its
+        polyline then ends where it starts, up to whole turns.
     """
 
     components: tuple[str, str]
@@ -64,6 +71,7 @@ class Pair:
     length: float
     error_estimate: float
     path: np.ndarray = field(repr=False)
+    closed: bool = False
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready form (the path as a list of ``[x1, x2]``)."""
@@ -75,6 +83,7 @@ class Pair:
             "end_crossing": self.end_crossing,
             "length": self.length,
             "error_estimate": self.error_estimate,
+            "closed": self.closed,
             "path": self.path.tolist(),
         }
 
@@ -142,73 +151,238 @@ class Penalty:
 
 
 def domains(scene: Scene, crossings: list[Crossing]) -> list[Domain]:
-    """Group the crossing points into the pair domains that carry them (see :mod:`direct.grid`)."""
+    """The pieces of ``M x M`` that need curves, with their crossing points (see :mod:`direct.grid`).
+
+    Every pair ``i <= j`` that carries crossing points, and every pair with a
+    circle (its topological conditions may ask for curves without any
+    crossing point); pairs of intervals without crossings are left out.
+    For a circle with itself (the annulus) both points ``(x1, x2)`` and
+    ``(x2, x1)`` of each crossing are in the domain, with opposite signs.
+    """
     groups: dict[tuple[int, int], list[int]] = {}
     for k, c in enumerate(crossings):
         groups.setdefault(tuple(c.components), []).append(k)
+    comps = scene.components
+    pairs = set(groups)
+    for i in range(len(comps)):
+        for j in range(i, len(comps)):
+            if comps[i].closed or comps[j].closed:
+                pairs.add((i, j))
     out = []
-    for (i, j), ids in sorted(groups.items()):
-        pts = np.array([crossings[k].params for k in ids], dtype=float)
-        signs = np.array([crossings[k].sign for k in ids], dtype=int)
-        out.append(Domain((i, j), (scene.components[i], scene.components[j]), pts, signs, np.array(ids)))
+    for i, j in sorted(pairs):
+        ids = groups.get((i, j), [])
+        pts = [crossings[k].params for k in ids]
+        signs = [crossings[k].sign for k in ids]
+        if i == j and comps[i].closed:
+            pts += [crossings[k].params[::-1] for k in ids]
+            signs += [-crossings[k].sign for k in ids]
+            ids = ids + ids
+        out.append(
+            Domain((i, j), (comps[i], comps[j]), np.array(pts, dtype=float).reshape(-1, 2),
+                   np.array(signs, dtype=int), np.array(ids, dtype=int))
+        )
     return out
 
 
-def _route(graph: GridGraph, routes, a: int, b: int | None) -> np.ndarray:
-    """Parameter-space polyline of the grid route from point ``a`` to point ``b`` (None: boundary)."""
-    if b is None:
-        return graph.node_path(routes[a](0), end_on_ground=True)
-    return graph.node_path(routes[a](graph.crossing_nodes[b]), end_on_ground=False)
+def _period(domain: Domain, level: float) -> int:
+    """Period of ``Phi_phi / 2 pi`` on the loop ``s -> (s, level)`` (local coordinates), minus the reference one.
+
+    This is the winding number of ``r_phi`` along the loop minus that of ``r_j``
+    (section 5.1.2: ``Phi_phi = grad theta_phi - grad theta_j``).
+    """
+    ci, cj = domain.comps
+    kind = domain.kind
+    if kind == "annulus":
+        # near the diagonal r(s) ~ -v phi'(s): the turning number (Remark 10)
+        return turning_number(ci.deformed) - turning_number(ci.reference)
+    if kind == "torus" or domain.comps[0].closed:
+        # s runs along circle i, x2 = level on component j
+        p, q = cj.phi(level), cj.j(level)
+        return winding_number(ci.deformed, p) - winding_number(ci.reference, q)
+    p, q = ci.phi(level), ci.j(level)  # s runs along circle j, x1 = level on interval i
+    return winding_number(cj.deformed, p) - winding_number(cj.reference, q)
+
+
+def _free_level(values: np.ndarray, period: float | None, length: float) -> float:
+    """A level in the gap of ``values`` that contains 0 (periodic) or below all of them (not periodic)."""
+    if len(values) == 0:
+        return 0.5 * length
+    if period is None:
+        return 0.5 * float(np.min(values))
+    top = float(np.max(values))
+    return 0.5 * (top + period) if top < period else 0.5 * float(np.min(values))
+
+
+def boundary_conditions(domain: Domain) -> dict[str, Any]:
+    """The topological conditions of eq. (6) on a domain with a circle.
+
+    Returns
+    -------
+    dict
+        For a cylinder or annulus: ``{"flux": F0}``, the net number of curves
+        that leave boundary part 0 (``v = 0``).  For a torus:
+        ``{"winds": (K1, K2)}``, the total signed number of times the curves
+        cross the seams ``s = 0`` and ``v = 0``.  Empty for intervals.
+
+    Notes
+    -----
+    The condition of eq. (6) on a loop ``c`` of ``M x M`` that avoids the
+    crossing points says that the algebraic intersection number of ``gamma``
+    with ``c`` is ``-1 / 2 pi`` times the period of ``Phi_phi`` on ``c``
+    (the sign follows from Prop. 9 on a small loop around a crossing point,
+    where the period is ``sign det grad r_phi = -s``).  With a loop
+    ``s -> (s, v0)`` below every crossing point, oriented by ``s``, whose
+    intersection with a curve going up is ``det(e_s, e_v)`` (the orientation
+    of the local coordinates), the net number of curves leaving the
+    boundary ``v = 0`` is ``F0 = -det(e_s, e_v) * period``.  For the circle
+    with itself this reads ``F0 = #j - #phi`` (Prop. 11, eq. (10)).  On a
+    torus the loops are the two seams.
+    """
+    kind = domain.kind
+    if kind in ("rect", "triangle"):
+        return {}
+    st = domain.to_local(domain.points) if len(domain.points) else np.empty((0, 2))
+    S, V = domain.local_lengths
+    sign = round(float(np.linalg.det(domain.basis)))
+    if kind in ("cylinder", "annulus"):
+        v0 = _free_level(st[:, 1], None, V)
+        level = domain.to_param(np.array([[0.0, v0]]))[0][1 if domain.basis[1, 1] else 0]
+        return {"flux": -sign * _period(domain, level)}
+    # torus: seam s = 0 is the loop v -> (s0, v); seam v = 0 the loop s -> (s, v0)
+    s0 = _free_level(st[:, 0], S, S)
+    v0 = _free_level(st[:, 1], V, V)
+    ci, cj = domain.comps
+    k1 = winding_number(cj.deformed, ci.phi(s0)) - winding_number(cj.reference, ci.j(s0))
+    k2 = -(winding_number(ci.deformed, cj.phi(v0)) - winding_number(ci.reference, cj.j(v0)))
+    return {"winds": (int(k1), int(k2))}
+
+
+def _settle(grid_costs: dict, solve, refine_key, bias: float | None):
+    """Solve, refine the chosen curves, re-solve with refined lengths until the choice is refined.
+
+    Entries not refined yet enter as optimistic lower estimates (grid length /
+    ``bias``), so a choice made of refined entries cannot be beaten by an
+    unrefined one.  ``bias=None``: no refinement, grid lengths.
+    """
+    if bias is None:
+        value, chosen = solve(grid_costs)
+        return value, chosen, {}
+    cache: dict = {}
+    for _ in range(len(grid_costs) + 1):
+        costs = {k: (cache[k].length if k in cache else v / bias) for k, v in grid_costs.items()}
+        value, chosen = solve(costs)
+        missing = [k for k, _ in chosen if k not in cache]
+        if not missing:
+            return value, chosen, cache
+        for k in missing:
+            cache[k] = refine_key(k)
+    raise DirectError("the choice of refined geodesics did not settle")  # pragma: no cover
 
 
 def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backend, do_refine: bool):
+    """Optimal family of curves on one domain: ``(value, grid_value, error, curves)``.
+
+    ``curves`` lists ``(start, end, polyline, length, error, closed)`` with
+    ``start``/``end`` a point index, ``("ground", g)`` or ``None`` (closed curve).
+    """
     graph = build_graph(domain, metric, settings["resolution"], settings["neighbours"])
-    D, D0, routes = grid_distances(graph, backend)
+    ng = domain.n_grounds
     pos = np.flatnonzero(domain.signs > 0)
     neg = np.flatnonzero(domain.signs < 0)
-    grid_value, grid_pairs = solve(D[np.ix_(pos, neg)], D0[pos], D0[neg])
-    if not do_refine:
-        chosen = {}
-        for i, j in grid_pairs:
-            a, b = (neg[j] if j is not None else pos[i]), (pos[i] if (i is not None and j is not None) else None)
-            route = _route(graph, routes, a, b)
-            length = D[a, b] if b is not None else D0[a]
-            chosen[(i, j)] = (route, float(length), 0.0)
-        return grid_value, grid_value, 0.0, grid_pairs, chosen
-    bias = 1.0 + _STENCIL_BIAS.get(settings["neighbours"], 0.1) + 0.05
-    cache: dict[tuple, Any] = {}
-    pairs = grid_pairs
-    for _ in range(len(pos) * len(neg) + len(pos) + len(neg) + 1):
-        for i, j in pairs:
-            if (i, j) in cache:
-                continue
-            if i is not None and j is not None:
-                a, b = neg[j], pos[i]  # gamma runs from the negative point to the positive one
-            else:
-                a, b = (pos[i] if i is not None else neg[j]), None
-            route = _route(graph, routes, a, b)
-            cache[(i, j)] = refine(domain, metric, route, free_end=b is None, tol=settings["tol"])
-        # refined lengths where known, optimistic lower estimates of the grid distances elsewhere
-        A_pm = D[np.ix_(pos, neg)] / bias
-        A_p0 = D0[pos] / bias
-        A_0m = D0[neg] / bias
-        for (i, j), rp in cache.items():
-            if i is not None and j is not None:
-                A_pm[i, j] = rp.length
-            elif i is not None:
-                A_p0[i] = rp.length
-            else:
-                A_0m[j] = rp.length
-        value, new_pairs = solve(A_pm, A_p0, A_0m)
-        if all(p in cache for p in new_pairs):
-            pairs = new_pairs
-            break
-        pairs = new_pairs
-    else:  # pragma: no cover - the loop refines a new entry each round, so it ends
-        raise DirectError("the matching of refined geodesics did not settle")
-    err = sum(cache[p].error_estimate for p in pairs)
-    chosen = {p: (cache[p].points, cache[p].length, cache[p].error_estimate) for p in pairs}
-    return value, grid_value, err, pairs, chosen
+    tol = settings["tol"]
+    bias = 1.0 + _STENCIL_BIAS.get(settings["neighbours"], 0.1) + 0.05 if do_refine else None
+    cond = boundary_conditions(domain)
+
+    if domain.kind == "torus":
+        T, troute = torus_distances(graph, backend)
+        K = cond["winds"]
+        grid_costs = {(i, j, c): float(T[c][neg[j], pos[i]]) for c in T for i in range(len(pos)) for j in range(len(neg))}
+        classes = [c for c in T if c != (0, 0)]
+        loops = closed_curve_distances(graph, classes) if K != (0, 0) or len(pos) else {}
+        for c, (length, _) in loops.items():
+            grid_costs[("closed", c)] = length
+
+        def solve(costs):
+            paths = {k: v for k, v in costs.items() if k[0] != "closed"}
+            closed = {k[1]: v for k, v in costs.items() if k[0] == "closed"}
+            return solve_torus(paths, closed, len(pos), len(neg), K)
+
+        def polyline(key):
+            if key[0] == "closed":
+                return loops[key[1]][1]
+            i, j, c = key
+            return troute(neg[j], pos[i], c)
+
+        def refine_key(key):
+            return refine(domain, metric, polyline(key), closed=key[0] == "closed", tol=tol)
+
+        def ends(key):
+            if key[0] == "closed":
+                return None, None
+            return int(neg[key[1]]), int(pos[key[0]])
+    else:
+        T, route = grid_distances(graph, backend)
+        nt = ng + len(domain.points)
+        supply = np.zeros(nt, dtype=int)
+        supply[ng + neg] = 1
+        supply[ng + pos] = -1
+        if ng == 1:
+            supply[0] = -supply[ng:].sum()
+        else:
+            supply[0] = cond["flux"]
+            supply[1] = -(supply[0] + supply[ng:].sum())
+        arcs = [(u, v) for u in range(nt) for v in range(nt) if u != v and np.isfinite(T[u, v])]
+        grid_costs = {a: float(T[a]) for a in arcs}
+
+        if ng == 1:  # intervals: the paper's assignment program (34)
+
+            def solve(costs):
+                A_pm = np.array([[costs.get((1 + j, 1 + i), np.inf) for j in neg] for i in pos]).reshape(len(pos), len(neg))
+                A_p0 = np.array([costs[(0, 1 + i)] for i in pos])
+                A_0m = np.array([costs[(1 + j, 0)] for j in neg])
+                value, pairs = solve_assignment(A_pm, A_p0, A_0m)
+                chosen = []
+                for i, j in pairs:
+                    u = 0 if j is None else 1 + int(neg[j])
+                    v = 0 if i is None else 1 + int(pos[i])
+                    chosen.append(((u, v), 1))
+                return value, chosen
+        else:
+
+            def solve(costs):
+                C = np.full((nt, nt), np.inf)
+                for (u, v), c in costs.items():
+                    C[u, v] = c
+                value, flow = solve_flow(C, supply)
+                return value, [((u, v), n) for u, v, n in flow]
+
+        def refine_key(key):
+            u, v = key
+            return refine(domain, metric, route(u, v), start_ground=u if u < ng else None,
+                          end_ground=v if v < ng else None, tol=tol)
+
+        def polyline(key):
+            return route(*key)
+
+        def ends(key):
+            u, v = key
+            return (("ground", u) if u < ng else u - ng), (("ground", v) if v < ng else v - ng)
+
+    grid_value, _ = solve(grid_costs)
+    value, chosen, cache = _settle(grid_costs, solve, refine_key, bias)
+    curves = []
+    err = 0.0
+    for key, count in chosen:
+        if key in cache:
+            rp = cache[key]
+            poly, length, e = rp.points, rp.length, rp.error_estimate
+        else:
+            poly, length, e = polyline(key), grid_costs[key], 0.0
+        start, end = ends(key)
+        for _ in range(count):
+            curves.append((start, end, np.asarray(poly, dtype=float), float(length), float(e), key[0] == "closed"))
+            err += e
+    return value, grid_value, err, curves
 
 
 def penalty(
@@ -257,8 +431,8 @@ def penalty(
     ------
     SceneError
         For an invalid scene.
-    NotSupportedError
-        For closed components (circles of M), not handled yet.
+    DegenerateError
+        For contacts the generic-perturbation rule cannot decide.
 
     Examples
     --------
@@ -269,17 +443,13 @@ def penalty(
     """
     t0 = time.perf_counter()
     scene = resolve(scene)
-    for c in scene.components:
-        if c.closed:
-            raise NotSupportedError(
-                f"component {c.name!r} is closed (a circle of M); this version of the direct method handles "
-                "intervals only (section 5.1.1): give it as an open polyline if its ends are free"
-            )
     met = get_metric(metric, power)
     if not (0 < tol < 1):
         raise DirectError(f"tol must be in (0, 1), got {tol!r}")
     if int(resolution) < 4:
         raise DirectError(f"resolution must be at least 4 grid cells, got {resolution!r}")
+    if neighbours not in (8, 16, 32):
+        raise DirectError(f"neighbours must be 8, 16 or 32, got {neighbours!r}")
     settings: dict[str, Any] = dict(met.describe())
     settings.update(tol=float(tol), resolution=int(resolution), neighbours=int(neighbours), backend=backend,
                     refine=bool(refine))
@@ -288,28 +458,26 @@ def penalty(
     total = grid_total = err_total = 0.0
     pairs: list[Pair] = []
     for dom in domains(scene, crossings):
-        value, grid_value, err, dom_pairs, chosen = _solve_domain(dom, met, settings, backend, refine)
-        total += 2.0 * value
-        grid_total += 2.0 * grid_value
-        err_total += 2.0 * err
-        pos = np.flatnonzero(dom.signs > 0)
-        neg = np.flatnonzero(dom.signs < 0)
+        if len(dom.points) == 0 and not any(boundary_conditions(dom).values()):
+            continue  # nothing to join: J = 0 on this piece
+        value, grid_value, err, curves = _solve_domain(dom, met, settings, backend, refine)
+        m = dom.multiplicity
+        total += m * value
+        grid_total += m * grid_value
+        err_total += m * err
         ni, nj = names[dom.pair[0]], names[dom.pair[1]]
-        for (i, j), (path, length, perr) in chosen.items():
-            path = np.asarray(path, dtype=float)
-            if i is not None and j is None:
-                path = path[::-1]  # from the boundary to the positive point
-            a = None if j is None else int(neg[j])
-            b = None if i is None else int(pos[i])
-            start = None if a is None else tuple(map(float, dom.points[a]))
-            end = None if b is None else tuple(map(float, dom.points[b]))
+        for start, end, path, length, perr, closed in curves:
+            a = start if isinstance(start, (int, np.integer)) else None
+            b = end if isinstance(end, (int, np.integer)) else None
+            sp_ = None if a is None else tuple(map(float, dom.points[a]))
+            ep_ = None if b is None else tuple(map(float, dom.points[b]))
             sc = None if a is None else int(dom.crossing_ids[a])
             ec = None if b is None else int(dom.crossing_ids[b])
-            pairs.append(Pair((ni, nj), start, end, sc, ec, float(length), float(perr), path))
-            # mirror image in M_j x M_i: coordinates swapped, signs (hence orientation) reversed
-            mstart = None if end is None else end[::-1]
-            mend = None if start is None else start[::-1]
-            pairs.append(Pair((nj, ni), mstart, mend, ec, sc, float(length), float(perr), path[::-1, ::-1].copy()))
+            pairs.append(Pair((ni, nj), sp_, ep_, sc, ec, length, perr, path, closed))
+            if m == 2:
+                # mirror image in M_j x M_i: coordinates swapped, signs (hence orientation) reversed
+                pairs.append(Pair((nj, ni), None if ep_ is None else ep_[::-1], None if sp_ is None else sp_[::-1],
+                                  ec, sc, length, perr, path[::-1, ::-1].copy(), closed))
     return Penalty(
         value=float(total),
         error_estimate=float(err_total),

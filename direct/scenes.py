@@ -17,7 +17,25 @@ waves     a curved interval (a sine wave sampled at 121 vertices) across a
 loop      one interval that makes a loop and crosses itself once: the curve
           gamma lives in the triangle ``x1 < x2`` of ``I x I`` and may end
           on the diagonal.
+reversed  the unit circle (256 vertices) deformed into itself run backwards,
+          ``(cos(-t), sin(-t))`` (paper, Fig. 12): no crossing, but turning
+          number -1 instead of 1; ``J^G = 4 sqrt(2) pi`` for the smooth circle.
+fig10     the unit circle deformed into the figure eight ``(cos t, sin 2t)``
+          (Fig. 10): one self-crossing, turning number 0.
+fig11     the double cover ``(cos 2t, sin 2t)`` (Fig. 11); odd vertex count,
+          so the two passes cross transversally (see :func:`circle_scene`).
+fig13     the triple cover ``(cos 3t, sin 3t)`` (Fig. 13), likewise.
+nested    the paper's example of section 3.3.4: two unit circles side by
+          side; the deformation shrinks the first by 1/2 and moves the second
+          onto the unit circle around it.  No crossing, yet not admissible:
+          only a closed curve ``(-M1) x {a}`` meets the conditions.
+ring      the example at the end of section 3.4.3: a unit circle kept in
+          place and a segment collapsed to its centre; ``J^G = 0`` but
+          ``J^g > 0`` (Prop. 17).
 ========  =====================================================================
+
+Circles are sampled as polylines with the vertices at equal angles; their
+parameter is the reference arclength of the polygon.
 """
 
 from __future__ import annotations
@@ -29,7 +47,7 @@ import numpy as np
 from .errors import SceneError
 from .scene import Component, Scene
 
-__all__ = ["get", "names", "cross", "resolve"]
+__all__ = ["get", "names", "cross", "resolve", "circle_scene"]
 
 
 def cross(a: float = 0.5, b: float = 0.5, c: float = 0.5, d: float = 0.5, angle: float = np.pi / 2) -> Scene:
@@ -83,12 +101,59 @@ def _loop() -> Scene:
     return Scene((Component(ref, dfm, name="loop"),), name="loop")
 
 
+def circle_scene(deformation, n: int = 256, radius: float = 1.0, name: str = "circle") -> Scene:
+    """The circle of radius ``radius`` (``n`` vertices) with a deformation given as a function of the angle.
+
+    Parameters
+    ----------
+    deformation : callable
+        ``t -> (n, 2)`` array of deformed positions for angles ``t`` (radians).
+    n : int, default 256
+        Number of vertices.  The multiple covers ``(cos kt, sin kt)`` put
+        vertices on top of each other when ``k`` divides into ``n`` evenly in
+        a way that repeats them; an odd ``n`` keeps the passes apart.
+    radius : float, default 1
+        Radius of the reference circle ``j(t) = radius (cos t, sin t)``.
+    name : str
+        Name of the component and the scene.
+
+    Returns
+    -------
+    Scene
+    """
+    t = 2 * np.pi * np.arange(n) / n
+    ref = radius * np.column_stack([np.cos(t), np.sin(t)])
+    return Scene((Component(ref, np.asarray(deformation(t), dtype=float), closed=True, name=name),), name=name)
+
+
+def _nested() -> Scene:
+    t = 2 * np.pi * np.arange(128) / 128
+    unit = np.column_stack([np.cos(t), np.sin(t)])
+    m1 = Component(unit, 0.5 * unit, closed=True, name="M1")
+    m2 = Component(unit + [0, 2.5], unit, closed=True, name="M2")
+    return Scene((m1, m2), name="nested")
+
+
+def _ring() -> Scene:
+    t = 2 * np.pi * np.arange(128) / 128
+    unit = np.column_stack([np.cos(t), np.sin(t)])
+    ring = Component(unit, unit, closed=True, name="ring")
+    seg = Component([[2, 0], [3, 0]], [[0, 0], [0, 0]], name="segment")
+    return Scene((ring, seg), name="ring")
+
+
 _BUILTIN: dict[str, Callable[[], Scene]] = {
     "cross": lambda: Scene(cross().components, name="cross"),
     "cross60": lambda: Scene(cross(1, 1, 1, 1, np.pi / 3).components, name="cross60"),
     "fig2": _fig2,
     "waves": _waves,
     "loop": _loop,
+    "reversed": lambda: circle_scene(lambda t: np.column_stack([np.cos(-t), np.sin(-t)]), name="reversed"),
+    "fig10": lambda: circle_scene(lambda t: np.column_stack([np.cos(t), np.sin(2 * t)]), name="fig10"),
+    "fig11": lambda: circle_scene(lambda t: np.column_stack([np.cos(2 * t), np.sin(2 * t)]), n=255, name="fig11"),
+    "fig13": lambda: circle_scene(lambda t: np.column_stack([np.cos(3 * t), np.sin(3 * t)]), n=257, name="fig13"),
+    "nested": _nested,
+    "ring": _ring,
 }
 
 
