@@ -36,7 +36,7 @@ from scipy.sparse.csgraph import dijkstra
 from scipy.sparse.linalg import spsolve
 
 from .grid import Domain, GridGraph
-from .metric import Metric, segment_lengths
+from .metric import Metric, _breaks, _vertex_params, segment_lengths
 
 __all__ = ["grid_distances", "torus_distances", "closed_curve_distances", "refine", "RefinedPath", "Backend"]
 
@@ -279,25 +279,34 @@ _OFFSETS = np.vstack(
 )
 
 
-def _segment_derivatives(metric: Metric, comps, P: np.ndarray, Q: np.ndarray, step: float, hessian: bool = True):
+def _segment_derivatives(metric: Metric, comps, P: np.ndarray, Q: np.ndarray, step: float,
+                         hessian_step: float | None = None):
     """Length, gradient (m, 4) and Hessian (m, 4, 4) of each segment in its end coordinates.
 
-    Central differences with step ``step`` (the lengths themselves are exact).
+    Central differences (the lengths themselves are exact): step ``step`` for
+    the gradient, ``hessian_step`` for the Hessian (None: no Hessian).  The
+    length is only piecewise smooth (the metric's norm jumps where a segment
+    crosses a vertex parameter), so a Hessian step wider than the gradient
+    step smooths those kinks for Newton without biasing the gradient.
     """
     m = len(P)
     U = np.hstack([P, Q])
-    offsets = _OFFSETS if hessian else _OFFSETS[:8]
-    Us = np.vstack([U] + [U + step * o for o in offsets])
-    f = segment_lengths(metric, comps, Us[:, :2], Us[:, 2:]).reshape(len(offsets) + 1, m)
+    if hessian_step is None:
+        Us = np.vstack([U] + [U + step * o for o in _OFFSETS[:8]])
+    else:
+        Us = np.vstack([U] + [U + step * o for o in _OFFSETS[:8]] + [U + hessian_step * o for o in _OFFSETS])
+    f = segment_lengths(metric, comps, Us[:, :2], Us[:, 2:]).reshape(-1, m)
     f0, fp, fm = f[0], f[1:5], f[5:9]
     grad = ((fp - fm) / (2 * step)).T
-    if not hessian:
+    if hessian_step is None:
         return f0, grad, None
+    h = hessian_step
+    hp, hm = f[9:13], f[13:17]
     H = np.empty((m, 4, 4))
-    H[:, np.arange(4), np.arange(4)] = ((fp - 2 * f0 + fm) / step**2).T
+    H[:, np.arange(4), np.arange(4)] = ((hp - 2 * f0 + hm) / h**2).T
     for k, (a, b) in enumerate(_PAIRS):
-        q = f[9 + 4 * k : 13 + 4 * k]
-        H[:, a, b] = H[:, b, a] = (q[0] - q[1] - q[2] + q[3]) / (4 * step**2)
+        q = f[17 + 4 * k : 21 + 4 * k]
+        H[:, a, b] = H[:, b, a] = (q[0] - q[1] - q[2] + q[3]) / (4 * h**2)
     return f0, grad, H
 
 
@@ -321,49 +330,50 @@ def _project(domain: Domain, X: np.ndarray) -> np.ndarray:
 class _Parametrization:
     """Vertices of a polyline as an affine function ``X = X0 + M z`` of the unknowns ``z``.
 
-    Vertex modes: fixed (a crossing point), free (an interior vertex), sliding
-    on a boundary line (a free end), or, for a closed curve, the last vertex
-    equal to the first plus a period shift.
+    ``modes[k]`` is ``"fixed"`` (a crossing point), ``"free"`` (two unknowns),
+    or ``(base, e, lo, hi)``: the vertex slides on the line ``base + tau e``
+    with ``lo <= tau <= hi`` (one unknown): a free end on the boundary, or a
+    refraction point on a line where the metric's norm jumps.  For a closed
+    curve (``shift`` given) the last vertex is the first plus ``shift``.
     """
 
-    def __init__(self, X0: np.ndarray, start_side, end_side, shift):
-        n = len(X0) - 1
+    def __init__(self, X: np.ndarray, modes: list, shift=None):
+        n = len(X) - 1
         self.n = n
-        self.X0 = X0.copy()
+        self.X0 = X.copy()
         rows, cols, vals = [], [], []
         nz = 0
         self.slides = []
-
-        def free(k):
-            nonlocal nz
-            rows.extend([2 * k, 2 * k + 1])
-            cols.extend([nz, nz + 1])
-            vals.extend([1.0, 1.0])
-            nz += 2
-            return nz - 2
-
-        if shift is not None:  # closed curve: every vertex free, X_n = X_0 + shift
-            for k in range(n):
-                c = free(k)
-                if k == 0:
-                    rows.extend([2 * n, 2 * n + 1])
-                    cols.extend([c, c + 1])
-                    vals.extend([1.0, 1.0])
-            self.X0[:] = 0.0
-            self.X0[n] = shift
-        else:
-            for k in range(1, n):
-                free(k)
-            for k, side in ((0, start_side), (n, end_side)):
-                if side is None:
-                    continue
-                base, e, (lo, hi) = side
+        last = n - 1 if shift is not None else n
+        first_cols = None
+        for k in range(last + 1):
+            mode = modes[k]
+            if isinstance(mode, str) and mode == "fixed":
+                continue
+            self.X0[k] = 0.0
+            if isinstance(mode, str):  # free
+                rows.extend([2 * k, 2 * k + 1])
+                cols.extend([nz, nz + 1])
+                vals.extend([1.0, 1.0])
+                entries = [(0, nz, 1.0), (1, nz + 1, 1.0)]
+                nz += 2
+            else:
+                base, e, lo, hi = mode
+                self.X0[k] = base
                 rows.extend([2 * k, 2 * k + 1])
                 cols.extend([nz, nz])
                 vals.extend([e[0], e[1]])
+                entries = [(0, nz, e[0]), (1, nz, e[1])]
                 self.slides.append((nz, lo, hi))
-                self.X0[k] = base
                 nz += 1
+            if k == 0:
+                first_cols = entries
+        if shift is not None:
+            self.X0[n] = self.X0[0] + shift
+            for axis, col, val in first_cols or []:
+                rows.append(2 * n + axis)
+                cols.append(col)
+                vals.append(val)
         self.nv = nz
         self.M = sp.csr_matrix((vals, (rows, cols)), shape=(2 * (n + 1), max(nz, 1)))
 
@@ -386,15 +396,90 @@ class _Parametrization:
         return self.X0 + (self.M @ z).reshape(-1, 2)
 
 
-def _optimize_level(domain: Domain, metric: Metric, X0: np.ndarray, start_side, end_side, shift, scale: float,
+def _normal_modes(X: np.ndarray, modes: list, closed: bool) -> list:
+    """Let each free vertex move only across the polyline, along its normal.
+
+    Moving vertices along a geodesic barely changes its length (not at all
+    where it is straight), so with both coordinates free the Hessian is
+    nearly singular and Newton creeps; the normal offsets alone are well
+    conditioned.  The spacing of the vertices stays that of the resampled
+    route and its midpoint refinements, the family Richardson extrapolation
+    assumes.
+    """
+    if closed:
+        prev = np.roll(X[:-1], 1, axis=0)
+        nxt = np.roll(X[:-1], -1, axis=0)
+        prev[0] = X[-2] - (X[-1] - X[0])
+        tangent = np.vstack([nxt - prev, [[0.0, 0.0]]])
+    else:
+        tangent = np.zeros_like(X)
+        tangent[1:-1] = X[2:] - X[:-2]
+    out = list(modes)
+    for k, mode in enumerate(modes):
+        if isinstance(mode, str) and mode == "free":
+            t = tangent[k]
+            norm = np.hypot(t[0], t[1])
+            e = np.array([-t[1], t[0]]) / norm if norm > 0 else np.array([1.0, 0.0])
+            out[k] = (X[k].copy(), e, -np.inf, np.inf)
+    return out
+
+
+def _insert_breaks(domain: Domain, X: np.ndarray, modes: list) -> tuple[np.ndarray, list]:
+    """Add a sliding vertex where the polyline crosses a vertex parameter of either component.
+
+    There the metric's norm jumps and the geodesic refracts; with a vertex on
+    the line, every segment stays in one cell, where the length is smooth.
+    """
+    P, Q = X[:-1], X[1:]
+    new_t, new_seg, new_axis = [], [], []
+    for axis, comp in enumerate(domain.comps):
+        u0, u1 = P[:, axis], Q[:, axis]
+        vp = _vertex_params(comp, float(min(u0.min(), u1.min())), float(max(u0.max(), u1.max())))
+        seg, t = _breaks(vp, u0, u1)
+        keep = (t > 1e-9) & (t < 1 - 1e-9)
+        new_t.append(t[keep])
+        new_seg.append(seg[keep])
+        new_axis.append(np.full(keep.sum(), axis))
+    t = np.concatenate(new_t)
+    if t.size == 0:
+        return X, modes
+    seg = np.concatenate(new_seg)
+    axis = np.concatenate(new_axis)
+    order = np.lexsort((t, seg))
+    t, seg, axis = t[order], seg[order], axis[order]
+    # one vertex per crossing point (a cell corner is crossed by two lines at once)
+    dup = np.zeros(len(t), dtype=bool)
+    dup[1:] = (seg[1:] == seg[:-1]) & (t[1:] - t[:-1] < 1e-9)
+    t, seg, axis = t[~dup], seg[~dup], axis[~dup]
+    pts = P[seg] + t[:, None] * (Q[seg] - P[seg])
+    out_X, out_modes = [], []
+    j = 0
+    for k in range(len(X)):
+        out_X.append(X[k])
+        out_modes.append(modes[k])
+        while j < len(seg) and seg[j] == k:
+            e = np.array([0.0, 1.0]) if axis[j] == 0 else np.array([1.0, 0.0])
+            base = pts[j] * (1 - e)
+            out_X.append(pts[j])
+            out_modes.append((base, e, -np.inf, np.inf))
+            j += 1
+    return np.array(out_X), out_modes
+
+
+def _optimize_level(domain: Domain, metric: Metric, X0: np.ndarray, modes: list, shift, scale: float,
                     max_iter: int = 60) -> np.ndarray:
-    """Minimize the exact length of a polyline over its free coordinates: damped Newton, then L-BFGS polish."""
+    """Minimize the exact length of a polyline over its free coordinates.
+
+    Damped Newton (Levenberg-Marquardt) with a backtracking line search; where
+    it stalls (lengths that are not smooth, such as the degenerate norm of the
+    euclid metric) an L-BFGS-B polish takes over.
+    """
     comps = domain.comps
-    par = _Parametrization(X0, start_side, end_side, shift)
+    par = _Parametrization(X0, modes, shift)
     if par.nv == 0:
         return X0
     n = par.n
-    step = 1e-5 * scale
+    step = hessian_step = 1e-5 * scale
     # global coordinate indices of the local coordinates (P1, P2, Q1, Q2) of each segment
     k = np.arange(n)
     loc = np.column_stack([2 * k, 2 * k + 1, 2 * k + 2, 2 * k + 3])
@@ -407,7 +492,7 @@ def _optimize_level(domain: Domain, metric: Metric, X0: np.ndarray, start_side, 
         return float(segment_lengths(metric, comps, X[:-1], X[1:]).sum())
 
     def assemble(X):
-        f, gl, Hl = _segment_derivatives(metric, comps, X[:-1], X[1:], step)
+        f, gl, Hl = _segment_derivatives(metric, comps, X[:-1], X[1:], step, hessian_step)
         gX = np.bincount(loc.ravel(), weights=gl.ravel(), minlength=2 * (n + 1))
         r = np.repeat(loc, 4, axis=1).ravel()
         c = np.tile(loc, (1, 4)).ravel()
@@ -419,14 +504,19 @@ def _optimize_level(domain: Domain, metric: Metric, X0: np.ndarray, start_side, 
     f, grad, H = assemble(X)
     lam = 1e-8
     eye = sp.identity(par.nv, format="csc")
+    converged = False
     for _ in range(max_iter):
         hscale = max(float(np.abs(H.diagonal()).max()), 1e-300)
         dz = spsolve(H + lam * hscale * eye, -grad)
-        if not np.all(np.isfinite(dz)) or dz @ grad >= 0:
+        decrease = -float(dz @ grad)  # twice the decrease Newton predicts
+        if not np.all(np.isfinite(dz)) or decrease <= 0:
             lam = max(lam * 100, 1e-6)
             if lam > 1e8:
                 break
             continue
+        if decrease <= 1e-11 * f:
+            converged = True
+            break
         t, accepted = 1.0, False
         for _ls in range(30):
             X_new = unpack(par.clip(z + t * dz))
@@ -436,30 +526,34 @@ def _optimize_level(domain: Domain, metric: Metric, X0: np.ndarray, start_side, 
                 break
             t *= 0.5
         if not accepted:
+            if decrease <= 1e-9 * f:  # no progress left below the rounding of the lengths
+                converged = True
+                break
             lam *= 100
             if lam > 1e8:
                 break
             continue
         z = par.pack(X_new)
-        done = f - f_new <= 1e-15 * max(f, 1e-300) or np.abs(t * dz).max() <= 1e-13 * scale
         X, f = X_new, f_new
         lam = max(lam / 10, 1e-12)
-        if done:
-            break
         f, grad, H = assemble(X)
+    if converged:
+        return X
 
     # quasi-Newton polish from the Newton point: robust where the length is not smooth (degenerate norms)
     def fun(zz):
         XX = unpack(par.clip(zz.copy()))
-        f0, gl, _ = _segment_derivatives(metric, comps, XX[:-1], XX[1:], step * 1e-2, hessian=False)
+        f0, gl, _ = _segment_derivatives(metric, comps, XX[:-1], XX[1:], step)
         gX = np.bincount(loc.ravel(), weights=gl.ravel(), minlength=2 * (n + 1))
         return float(f0.sum()), Mt @ gX
 
-    bounds = [(None, None)] * par.nv
+    # finite bounds everywhere (scipy's L-BFGS-B is very slow with unbounded variables), wide around z
+    wide = 10.0 * scale
+    bounds = [(float(zk) - wide, float(zk) + wide) for zk in z]
     for kk, lo, hi in par.slides:
-        bounds[kk] = (None if np.isinf(lo) else lo, None if np.isinf(hi) else hi)
+        bounds[kk] = (max(lo, bounds[kk][0]), min(hi, bounds[kk][1]))
     res = minimize(fun, z, jac=True, method="L-BFGS-B", bounds=bounds,
-                   options={"maxiter": 500, "ftol": 1e-15, "gtol": 0.0})
+                   options={"maxiter": 300, "ftol": 1e-15, "gtol": 0.0})
     Xp = unpack(par.clip(res.x))
     return Xp if length(Xp) < f else X
 
@@ -504,22 +598,36 @@ def refine(
     scale = float(max(domain.lengths))
     route = np.asarray(route, dtype=float)
     shift = route[-1] - route[0] if closed else None
-    ss = _side(domain, start_ground, route[0]) if start_ground is not None else None
-    es = _side(domain, end_ground, route[-1]) if end_ground is not None else None
     X = _resample(route, start)
+    modes: list = ["free"] * (start + 1)
+    if not closed:
+        for k, ground in ((0, start_ground), (start, end_ground)):
+            if ground is None:
+                modes[k] = "fixed"
+            else:
+                base, e, (lo, hi) = _side(domain, ground, X[k])
+                modes[k] = (base, e, lo, hi)
+    X, modes = _insert_breaks(domain, X, modes)
     history = []
     n = start
     while True:
-        X = _optimize_level(domain, metric, X, ss, es, shift, scale)
+        X = _optimize_level(domain, metric, X, _normal_modes(X, modes, closed), shift, scale)
+        X, modes = _insert_breaks(domain, X, modes)
         Ln = float(segment_lengths(metric, domain.comps, X[:-1], X[1:]).sum())
         history.append(Ln)
         if len(history) >= 2:
             corr = (history[-2] - history[-1]) / 3.0
             if abs(corr) <= tol * abs(history[-1]) or n >= max_segments:
-                return RefinedPath(X, history[-1] - corr, Ln, abs(corr), n)
+                return RefinedPath(X, history[-1] - corr, Ln, abs(corr), len(X) - 1)
         elif Ln == 0.0:
-            return RefinedPath(X, 0.0, 0.0, 0.0, n)
+            return RefinedPath(X, 0.0, 0.0, 0.0, len(X) - 1)
+        # double: a free midpoint in every segment
         mid = 0.5 * (X[:-1] + X[1:])
-        Y = np.empty((2 * n + 1, 2))
+        Y = np.empty((2 * len(X) - 1, 2))
         Y[0::2], Y[1::2] = X, mid
-        X, n = Y, 2 * n
+        new_modes: list = []
+        for k in range(len(X)):
+            new_modes.append(modes[k])
+            if k < len(X) - 1:
+                new_modes.append("free")
+        X, modes, n = Y, new_modes, 2 * n
