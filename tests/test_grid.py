@@ -88,17 +88,29 @@ def test_scipy_and_networkx_distances_identical(seed):
     met = get_metric("G")
     for dom in domains(sc, direct.find_crossings(sc)):
         g = build_graph(dom, met, resolution=30)
-        Da, D0a, ra = grid_distances(g, "scipy")
-        Db, D0b, rb = grid_distances(g, "networkx")
-        np.testing.assert_allclose(Da, Db, rtol=1e-12)
-        np.testing.assert_allclose(D0a, D0b, rtol=1e-12)
-        # the routes are real paths of the graph whose weights add up to the distance
-        W = g.matrix.maximum(g.matrix.T).tocsr()
-        for k in range(len(dom.points)):
-            nodes = ra[k](0)
-            assert nodes[0] == g.crossing_nodes[k] and nodes[-1] == 0
-            total = sum(W[u, v] for u, v in zip(nodes[:-1], nodes[1:]))
-            assert total == pytest.approx(D0a[k], rel=1e-12)
+        Ta, route = grid_distances(g, "scipy")
+        Tb, _ = grid_distances(g, "networkx")
+        np.testing.assert_allclose(Ta, Tb, rtol=1e-12)
+        # a route is a real curve: its exact length is its grid distance (the edges are exact)
+        for a in range(1, Ta.shape[0]):
+            for b in (0, *range(1, Ta.shape[0])):
+                if a == b:
+                    continue
+                poly = route(a, b)
+                exact = segment_lengths(met, dom.comps, poly[:-1], poly[1:]).sum()
+                assert exact == pytest.approx(Ta[a, b], rel=1e-9)
+
+
+def test_no_path_runs_through_the_boundary():
+    """Two crossing points near the same side: their distance is not a shortcut along the boundary."""
+    sc = direct.scenes.get("fig2")
+    met = get_metric("G")
+    (dom,) = domains(sc, direct.find_crossings(sc))
+    g = build_graph(dom, met, resolution=40)
+    T, route = grid_distances(g)
+    poly = route(1, 2)
+    inside = dom.boundary_distance(dom.to_local(poly[1:-1]))
+    assert (inside > 0).all()
 
 
 def test_triangle_domain_has_diagonal_as_boundary():

@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 import direct
 from direct.geodesics import grid_distances
 from direct.grid import build_graph
-from direct.matching import brute_force, solve
+from direct.matching import brute_force, solve, solve_flow
 from direct.metric import get_metric
 from direct.penalty import domains
 
@@ -55,7 +55,13 @@ def test_assignment_equals_enumeration_on_grid_distances(seed):
     met = get_metric("G")
     for dom in domains(sc, direct.find_crossings(sc)):
         g = build_graph(dom, met, resolution=40)
-        D, D0, _ = grid_distances(g)
-        pos, neg = np.flatnonzero(dom.signs > 0), np.flatnonzero(dom.signs < 0)
-        value, _ = solve(D[np.ix_(pos, neg)], D0[pos], D0[neg])
-        assert value == pytest.approx(brute_force(D[np.ix_(pos, neg)], D0[pos], D0[neg]), rel=1e-12)
+        T, _ = grid_distances(g)
+        pos, neg = 1 + np.flatnonzero(dom.signs > 0), 1 + np.flatnonzero(dom.signs < 0)
+        A_pm, A_p0, A_0m = T[np.ix_(neg, pos)].T, T[0, pos], T[neg, 0]
+        value, _ = solve(A_pm, A_p0, A_0m)
+        assert value == pytest.approx(brute_force(A_pm, A_p0, A_0m), rel=1e-12)
+        # the min-cost flow with one boundary part is program (34) too
+        supply = np.zeros(T.shape[0], dtype=int)
+        supply[neg], supply[pos] = 1, -1
+        supply[0] = -supply.sum()
+        assert solve_flow(T, supply)[0] == pytest.approx(value, rel=1e-9)

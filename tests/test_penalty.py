@@ -169,12 +169,6 @@ def test_grid_value_converges_with_resolution_to_a_biased_limit():
     assert vals[2] <= vals[0]
 
 
-def test_closed_component_not_yet_supported():
-    ring = direct.Component([[0, 0], [1, 0], [1, 1], [0, 1]], [[0, 0], [1, 0], [1, 1], [0, 1]], closed=True)
-    with pytest.raises(direct.NotSupportedError, match="closed"):
-        direct.penalty(direct.Scene((ring,)))
-
-
 def test_bad_settings():
     with pytest.raises(direct.DirectError, match="metric"):
         direct.penalty("cross", "H")

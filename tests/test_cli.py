@@ -1,0 +1,164 @@
+"""The ``direct`` command line: JSON and text output, figures, and one-line errors."""
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+import direct
+from direct.cli import main
+
+
+def run(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "direct", *args], capture_output=True, text=True, timeout=120)
+
+
+@pytest.fixture(scope="module")
+def cross_value() -> float:
+    return direct.penalty("cross").value
+
+
+def test_penalty_json_is_one_object(cross_value):
+    proc = run("penalty", "cross", "--json")
+    assert proc.returncode == 0, proc.stderr
+    data = json.loads(proc.stdout)  # fails if anything else is on stdout
+    assert isinstance(data, dict)
+    assert {"value", "error_estimate", "crossings", "pairs", "settings", "seconds"} <= set(data)
+    assert data["value"] == pytest.approx(cross_value, rel=1e-12)
+    assert data["value"] == pytest.approx(2 * 0.5**3 / 3, rel=1e-3)  # J^G = 2 m^3 / 3
+    assert len(data["crossings"]) == 1
+    crossing = data["crossings"][0]
+    assert {"components", "params", "point", "sign"} <= set(crossing)
+    assert crossing["sign"] in (1, -1)
+    assert crossing["params"] == pytest.approx([0.5, 0.5], abs=1e-12)
+    assert crossing["point"] == pytest.approx([0.0, 0.0], abs=1e-12)
+    assert len(data["pairs"]) == 2  # one curve per half of M x M
+    assert data["settings"]["metric"] == "G"
+    assert data["seconds"] >= 0
+
+
+def test_penalty_json_options_reach_penalty(capsys):
+    assert main(["penalty", "cross", "--json", "--metric", "g", "--power", "1", "--no-refine",
+                 "--resolution", "24", "--neighbours", "8"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert data["settings"]["metric"] == "g"
+    assert data["settings"]["p"] == 1.0
+    assert data["settings"]["refine"] is False
+    assert data["settings"]["resolution"] == 24
+    assert data["settings"]["neighbours"] == 8
+    assert data["value"] == data["grid_value"]
+
+
+def test_penalty_summary(capsys, cross_value):
+    assert main(["penalty", "cross"]) == 0
+    out = capsys.readouterr().out
+    assert f"J^G = {cross_value:.7g}" in out
+    assert "grid Dijkstra alone" in out
+    assert "A x B" in out  # the crossings table names the components
+    assert "boundary" in out  # the single crossing's curves end on the boundary
+    assert "time:" in out
+
+
+def test_penalty_summary_fig2(capsys):
+    assert main(["penalty", "fig2", "--resolution", "32"]) == 0
+    out = capsys.readouterr().out
+    assert "scene: fig2" in out
+    assert "I1 x I2" in out
+    assert "+" in out and " -" in out  # the two crossings of Figure 2 have opposite signs
+
+
+def test_plot_writes_png(tmp_path):
+    target = tmp_path / "out.png"
+    proc = run("plot", "fig2", "-o", str(target), "--resolution", "32")
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.strip() == str(target)
+    data = target.read_bytes()
+    assert len(data) > 1000
+    assert data[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_scenes_lists_builtins(capsys):
+    assert main(["scenes"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    names = [line.split()[0] for line in lines]
+    assert names == direct.scenes.names()
+    assert {"fig2", "cross"} <= set(names)
+    assert any(line.startswith("fig2") and "Figure 2" in line for line in lines)
+
+
+def test_version(capsys):
+    assert main(["--version"]) == 0
+    assert capsys.readouterr().out.strip() == f"direct {direct.__version__}"
+
+
+def _scene(reference, deformed):
+    return {"components": [
+        {"name": "A", "reference": [[0, 0], [1, 0]], "deformed": [[-0.5, 0], [0.5, 0]]},
+        {"name": "B", "reference": reference, "deformed": deformed},
+    ]}
+
+
+BAD_FILES = {
+    "malformed JSON": '{"components": [',
+    "missing deformed": json.dumps({"components": [{"name": "A", "reference": [[0, 0], [1, 0]]}]}),
+    "NaN coordinate": json.dumps(_scene([[0, 2], [1, 2]], [[0, -0.5], [float("nan"), 0.5]])),
+    "mismatched counts": json.dumps(_scene([[0, 2], [1, 2], [2, 2]], [[0, -0.5], [0, 0.5]])),
+}
+
+
+def assert_one_line_error(proc_or_err, returncode):
+    assert returncode == 2
+    lines = proc_or_err.strip().splitlines()
+    assert len(lines) == 1, proc_or_err
+    assert lines[0].startswith("direct: error: ")
+    assert "Traceback" not in proc_or_err
+
+
+@pytest.mark.parametrize("case", sorted(BAD_FILES))
+def test_bad_scene_file(tmp_path, capsys, case):
+    path = tmp_path / "scene.json"
+    path.write_text(BAD_FILES[case])
+    code = main(["penalty", str(path)])
+    captured = capsys.readouterr()
+    assert captured.out == ""
+    assert_one_line_error(captured.err, code)
+
+
+def test_nan_token_in_file(tmp_path, capsys):
+    path = tmp_path / "nan.json"
+    path.write_text(json.dumps(_scene([[0, 2], [1, 2]], [[0, -0.5], [0, 0.5]])).replace("0.5]]}]", "NaN]]}]"))
+    assert "NaN" in path.read_text()
+    code = main(["penalty", str(path), "--json"])
+    captured = capsys.readouterr()
+    assert captured.out == ""
+    assert_one_line_error(captured.err, code)
+    assert "finite" in captured.err
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["penalty", "no/such/scene.json"],
+        ["penalty", "no-such-scene"],
+        ["penalty", "cross", "--metric", "riemann"],
+        ["penalty", "cross", "--tol", "2"],
+        ["plot", "cross"],  # -o is required
+        [],
+    ],
+    ids=["missing file", "unknown scene", "unknown metric", "bad tol", "plot without -o", "no command"],
+)
+def test_bad_arguments(capsys, args):
+    code = main(args)
+    captured = capsys.readouterr()
+    assert captured.out == ""
+    assert_one_line_error(captured.err, code)
+
+
+def test_errors_through_python_m(tmp_path):
+    path = tmp_path / "bad.json"
+    path.write_text(BAD_FILES["mismatched counts"])
+    for args in (["penalty", str(path)], ["penalty", "cross", "--metric", "riemann"]):
+        proc = run(*args)
+        assert proc.stdout == ""
+        assert_one_line_error(proc.stderr, proc.returncode)
