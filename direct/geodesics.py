@@ -97,24 +97,57 @@ def grid_distances(graph: GridGraph, backend: Backend = "scipy") -> tuple[np.nda
         others the crossing points in order).  No curve runs through the
         boundary.
     route : callable
-        ``route(a, b)`` is the parameter-space polyline of that curve.
+        ``route(a, b)`` is the parameter-space polyline of that curve;
+        ``route.candidates(a, g, margin)`` lists the routes from point ``a``
+        to boundary part ``g`` that end in distinct stretches of the
+        boundary and cost at most ``(1 + margin)`` times the best: the
+        geodesic to a boundary can have several local minima whose grid
+        lengths differ by less than the grid's bias.
     """
     src, dst = graph.sources, graph.targets
     dist, node_route = _shortest(graph.matrix, src, backend)
+    ng = graph.n_grounds
 
     def route(a: int, b: int) -> np.ndarray:
         return graph.node_path(node_route(a, dst[b]))
 
+    def candidates(a: int, g: int, margin: float, most: int = 6) -> list[np.ndarray]:
+        on = graph.rows == g
+        nodes, w = graph.cols[on], graph.weights[on]
+        cost = dist[a, nodes] + w
+        best = cost.min()
+        keep = cost <= (1 + margin) * best
+        nodes, cost = nodes[keep], cost[keep]
+        ends = graph.exit_points[g, nodes]
+        # stretches of the boundary: exit points closer than a few grid steps belong together
+        order = np.argsort(cost)
+        picked: list[int] = []
+        gap = 3.0 * float(np.max(graph.h))
+        for k in order:
+            if all(np.abs(ends[k] - ends[j]).max() > gap for j in picked):
+                picked.append(k)
+            if len(picked) >= most:
+                break
+        return [graph.node_path(node_route(a, int(nodes[k])) + [g]) for k in picked]
+
+    route.candidates = candidates
     return dist[:, dst], route
 
 
 _COVER = [(a, b) for a in (-1, 0, 1) for b in (-1, 0, 1)]
 
 
+def _cover_index(k: np.ndarray) -> np.ndarray:
+    """Index in ``_COVER`` of classes ``k`` (rows of two ints in ``{-1, 0, 1}``)."""
+    return 3 * (k[..., 0] + 1) + (k[..., 1] + 1)
+
+
 def _cover_matrix(graph: GridGraph) -> sp.csr_matrix:
     """The 3 x 3 block of the universal cover of a torus graph: copy ``c`` of node ``u`` is ``u + N c``."""
+    cached = getattr(graph, "_cover", None)
+    if cached is not None:
+        return cached
     N = graph.n_nodes
-    index = {c: k for k, c in enumerate(_COVER)}
     rows, cols, data = [], [], []
     for c in _COVER:
         k = np.array(c)
@@ -122,12 +155,13 @@ def _cover_matrix(graph: GridGraph) -> sp.csr_matrix:
                             (graph.cols, graph.rows, graph.weights, -graph.winds)):
             to = k[None, :] + dk
             ok = (np.abs(to) <= 1).all(axis=1)
-            ci = np.array([index[(int(a), int(b))] for a, b in to[ok]], dtype=np.int64)
-            rows.append(r[ok] + N * index[c])
-            cols.append(q[ok] + N * ci)
+            rows.append(r[ok] + N * _COVER.index(c))
+            cols.append(q[ok] + N * _cover_index(to[ok]))
             data.append(w[ok])
     n = N * len(_COVER)
-    return sp.csr_matrix((np.concatenate(data), (np.concatenate(rows), np.concatenate(cols))), shape=(n, n))
+    M = sp.csr_matrix((np.concatenate(data), (np.concatenate(rows), np.concatenate(cols))), shape=(n, n))
+    graph._cover = M
+    return M
 
 
 def torus_distances(graph: GridGraph, backend: Backend = "scipy") -> tuple[dict, callable]:
@@ -166,41 +200,41 @@ def _cover_polyline(graph: GridGraph, nodes) -> np.ndarray:
     return graph.domain.to_param(np.array(st))
 
 
-def closed_curve_distances(graph: GridGraph, classes, max_bases: int = 24) -> dict:
-    """Shortest closed grid curves of a torus in given homotopy classes.
+def closed_curve_distances(graph: GridGraph, max_bases: int = 24) -> dict:
+    """Shortest closed grid curves of a torus in the primitive homotopy classes.
 
     Parameters
     ----------
     graph : GridGraph
         A torus graph.
-    classes : iterable of (int, int)
-        Classes ``(a, b)`` with ``|a|, |b| <= 1``, not ``(0, 0)``.
     max_bases : int
-        Base points tried per seam (a closed curve of class ``(a, b)`` with
-        ``a != 0`` crosses the seam ``s = 0``; with ``a = 0`` the seam ``v = 0``).
+        Base points tried per seam: a closed curve of class ``(a, b)`` with
+        ``a != 0`` crosses the seam ``s = 0``, one with ``a = 0`` the seam ``v = 0``.
 
     Returns
     -------
     dict
-        ``{(a, b): (length, polyline)}``, the polyline closed up to the shift
-        ``(a S, b V)`` in local coordinates, given in parameters.
+        ``{(a, b): (length, polyline)}`` for the eight classes with ``|a|, |b| <= 1``;
+        the polyline (parameters) ends at its start shifted by ``(a S, b V)`` in
+        local coordinates.  Opposite classes are the same curves run backwards.
     """
     N = graph.n_nodes
     M = _cover_matrix(graph)
     centre = _COVER.index((0, 0))
-    ns, nv = graph.shape
-    grid = graph.coords[:, :]
+    grid = graph.coords
     out = {}
-    for a, b in classes:
-        axis = 0 if a != 0 else 1
-        on_seam = np.flatnonzero(np.isclose(grid[:, axis], 0.0) & np.isfinite(grid[:, 0]))
-        on_seam = on_seam[np.linspace(0, len(on_seam) - 1, min(max_bases, len(on_seam))).astype(int)]
+    for axis, classes in ((0, [(1, 0), (1, 1), (1, -1)]), (1, [(0, 1)])):
+        on_seam = np.flatnonzero(np.isfinite(grid[:, 0]) & np.isclose(grid[:, axis], 0.0))
+        on_seam = on_seam[np.unique(np.linspace(0, len(on_seam) - 1, min(max_bases, len(on_seam))).astype(int))]
         src = on_seam + N * centre
         dist, node_route = _shortest(M, src, "scipy")
-        tgt = on_seam + N * _COVER.index((a, b))
-        d = dist[np.arange(len(src)), tgt]
-        k = int(np.argmin(d))
-        out[(a, b)] = (float(d[k]), _cover_polyline(graph, node_route(k, tgt[k])))
+        for a, b in classes:
+            tgt = on_seam + N * _COVER.index((a, b))
+            d = dist[np.arange(len(src)), tgt]
+            k = int(np.argmin(d))
+            poly = _cover_polyline(graph, node_route(k, tgt[k]))
+            out[(a, b)] = (float(d[k]), poly)
+            out[(-a, -b)] = (float(d[k]), poly[::-1].copy())
     return out
 
 
@@ -270,44 +304,25 @@ def _side(domain: Domain, ground: int, q: np.ndarray):
     return base, direction, rng
 
 
-_E4 = np.eye(4)
-# second-difference stencils of a function of the 4 end coordinates (P1, P2, Q1, Q2) of a segment
-_PAIRS = [(a, b) for a in range(4) for b in range(a + 1, 4)]
-_OFFSETS = np.vstack(
-    [_E4, -_E4]
-    + [np.array([s * _E4[a] + t * _E4[b] for s, t in ((1, 1), (1, -1), (-1, 1), (-1, -1))]) for a, b in _PAIRS]
-)
-
-
 def _segment_derivatives(metric: Metric, comps, P: np.ndarray, Q: np.ndarray, step: float,
-                         hessian_step: float | None = None):
-    """Length, gradient (m, 4) and Hessian (m, 4, 4) of each segment in its end coordinates.
+                         hessian: bool = True):
+    """Length, gradient (m, 4) and Hessian (m, 4, 4) of each segment in its end coordinates ``(P1, P2, Q1, Q2)``.
 
-    Central differences (the lengths themselves are exact): step ``step`` for
-    the gradient, ``hessian_step`` for the Hessian (None: no Hessian).  The
-    length is only piecewise smooth (the metric's norm jumps where a segment
-    crosses a vertex parameter), so a Hessian step wider than the gradient
-    step smooths those kinks for Newton without biasing the gradient.
+    The gradient is exact (:func:`direct.metric.segment_lengths`); the Hessian
+    is its central difference with step ``step``, symmetrized.
     """
     m = len(P)
     U = np.hstack([P, Q])
-    if hessian_step is None:
-        Us = np.vstack([U] + [U + step * o for o in _OFFSETS[:8]])
-    else:
-        Us = np.vstack([U] + [U + step * o for o in _OFFSETS[:8]] + [U + hessian_step * o for o in _OFFSETS])
-    f = segment_lengths(metric, comps, Us[:, :2], Us[:, 2:]).reshape(-1, m)
-    f0, fp, fm = f[0], f[1:5], f[5:9]
-    grad = ((fp - fm) / (2 * step)).T
-    if hessian_step is None:
-        return f0, grad, None
-    h = hessian_step
-    hp, hm = f[9:13], f[13:17]
-    H = np.empty((m, 4, 4))
-    H[:, np.arange(4), np.arange(4)] = ((hp - 2 * f0 + hm) / h**2).T
-    for k, (a, b) in enumerate(_PAIRS):
-        q = f[17 + 4 * k : 21 + 4 * k]
-        H[:, a, b] = H[:, b, a] = (q[0] - q[1] - q[2] + q[3]) / (4 * h**2)
-    return f0, grad, H
+    if not hessian:
+        f, g = segment_lengths(metric, comps, P, Q, gradient=True)
+        return f, g, None
+    E = np.eye(4) * step
+    Us = np.vstack([U] + [U + e for e in E] + [U - e for e in E])
+    f, g = segment_lengths(metric, comps, Us[:, :2], Us[:, 2:], gradient=True)
+    g = g.reshape(9, m, 4)
+    H = np.stack([(g[1 + k] - g[5 + k]) / (2 * step) for k in range(4)], axis=1)  # H[:, k, :] = d grad / d u_k
+    H = 0.5 * (H + H.transpose(0, 2, 1))
+    return f[:m], g[0], H
 
 
 def _project(domain: Domain, X: np.ndarray) -> np.ndarray:
@@ -388,8 +403,11 @@ class _Parametrization:
         return self.clip((self.M.T @ (X - self.X0).ravel()) / diag)
 
     def clip(self, z):
-        for k, lo, hi in self.slides:
-            z[k] = np.clip(z[k], lo, hi)
+        if self.slides:
+            if not hasattr(self, "_slide_idx"):
+                arr = np.array(self.slides, dtype=float).reshape(-1, 3)
+                self._slide_idx, self._lo, self._hi = arr[:, 0].astype(int), arr[:, 1], arr[:, 2]
+            z[self._slide_idx] = np.clip(z[self._slide_idx], self._lo, self._hi)
         return z
 
     def unpack(self, z: np.ndarray) -> np.ndarray:
@@ -422,6 +440,68 @@ def _normal_modes(X: np.ndarray, modes: list, closed: bool) -> list:
             e = np.array([-t[1], t[0]]) / norm if norm > 0 else np.array([1.0, 0.0])
             out[k] = (X[k].copy(), e, -np.inf, np.inf)
     return out
+
+
+def _on_ground(domain: Domain, ground: int, X: np.ndarray) -> np.ndarray:
+    """Whether each vertex lies on boundary part ``ground`` (to rounding)."""
+    st = domain.to_local(X, wrap=False)
+    S, V = domain.local_lengths
+    eps = 1e-12 * max(S, V)
+    if domain.kind in ("cylinder", "annulus"):
+        return np.abs(st[:, 1] - (0.0 if ground == 0 else V)) <= eps
+    on = (np.abs(st[:, 1]) <= eps) | (np.abs(st[:, 1] - V) <= eps)
+    on |= (np.abs(st[:, 0]) <= eps) | (np.abs(st[:, 0] - S) <= eps)
+    if domain.kind == "triangle":
+        on |= np.abs(X[:, 1] - X[:, 0]) <= eps
+    return on
+
+
+def _truncate_at_boundary(domain: Domain, ground: int, X: np.ndarray, modes: list) -> tuple[np.ndarray, list]:
+    """End a curve bound for the boundary where it first reaches it.
+
+    The rest of the polyline runs on or back from the boundary, where the
+    curve could have stopped at no cost (eq. (9) lets it end anywhere there);
+    cutting it only shortens it and frees the optimizer, which cannot move
+    vertices held on the boundary by the projection.
+    """
+    on = _on_ground(domain, ground, X)
+    on[0] = False
+    hit = np.flatnonzero(on)
+    if hit.size == 0 or hit[0] == len(X) - 1:
+        return X, modes
+    k = int(hit[0])
+    X = X[: k + 1].copy()
+    base, e, (lo, hi) = _side(domain, ground, X[k])
+    modes = list(modes[:k]) + [(base, e, lo, hi)]
+    return X, modes
+
+
+def _initial_polyline(domain: Domain, route: np.ndarray, start: int, start_ground, end_ground, closed: bool):
+    """First polyline of the refinement: the route's ends and its crossings with the cell lines.
+
+    Each segment then lies in one cell, where the length is a smooth function
+    of its ends.  Where the route crosses fewer than ``start`` lines, its
+    evenly resampled points fill in (free vertices).
+    """
+    X = _resample(route, start)
+    modes: list = ["free"] * (start + 1)
+    if not closed:
+        for k, ground in ((0, start_ground), (start, end_ground)):
+            if ground is None:
+                modes[k] = "fixed"
+            else:
+                base, e, (lo, hi) = _side(domain, ground, X[k])
+                modes[k] = (base, e, lo, hi)
+    Y, ymodes = _insert_breaks(domain, route, ["free"] * len(route))
+    lines = [k for k, m in enumerate(ymodes) if not isinstance(m, str)]
+    if len(lines) + 1 < start:
+        return _insert_breaks(domain, X, modes)
+    keep = [0] + lines + [len(Y) - 1]
+    X = Y[keep]
+    modes = [modes[0]] + [ymodes[k] for k in lines] + [modes[-1]]
+    if closed:
+        modes[0] = modes[-1] = "free"
+    return X, modes
 
 
 def _insert_breaks(domain: Domain, X: np.ndarray, modes: list) -> tuple[np.ndarray, list]:
@@ -466,8 +546,45 @@ def _insert_breaks(domain: Domain, X: np.ndarray, modes: list) -> tuple[np.ndarr
     return np.array(out_X), out_modes
 
 
+def _newton(par, unpack, length, assemble, z, scale, max_iter):
+    """Damped Newton (Levenberg-Marquardt) with backtracking: ``(X, converged)``."""
+    X = unpack(z)
+    f, grad, H = assemble(X)
+    lam = 1e-8
+    eye = sp.identity(par.nv, format="csc")
+    for _ in range(max_iter):
+        hscale = max(float(np.abs(H.diagonal()).max()), 1e-300)
+        dz = spsolve(H + lam * hscale * eye, -grad)
+        decrease = -float(dz @ grad)
+        if not np.all(np.isfinite(dz)) or decrease <= 0:
+            lam = max(lam * 100, 1e-6)
+            if lam > 1e8:
+                return X, False
+            continue
+        if decrease <= 1e-11 * f:
+            return X, True
+        t, accepted = 1.0, False
+        for _ls in range(30):
+            X_new = unpack(par.clip(z + t * dz))
+            f_new = length(X_new)
+            if f_new <= f:
+                accepted = True
+                break
+            t *= 0.5
+        if not accepted:
+            lam *= 100
+            if lam > 1e8:
+                return X, False
+            continue
+        z = par.pack(X_new)
+        X, f = X_new, f_new
+        lam = max(lam / 10, 1e-12)
+        f, grad, H = assemble(X)
+    return X, False
+
+
 def _optimize_level(domain: Domain, metric: Metric, X0: np.ndarray, modes: list, shift, scale: float,
-                    max_iter: int = 60) -> np.ndarray:
+                    max_iter: int = 30, ftol: float = 1e-12) -> np.ndarray:
     """Minimize the exact length of a polyline over its free coordinates.
 
     Damped Newton (Levenberg-Marquardt) with a backtracking line search; where
@@ -479,7 +596,7 @@ def _optimize_level(domain: Domain, metric: Metric, X0: np.ndarray, modes: list,
     if par.nv == 0:
         return X0
     n = par.n
-    step = hessian_step = 1e-5 * scale
+    step = 1e-6 * scale
     # global coordinate indices of the local coordinates (P1, P2, Q1, Q2) of each segment
     k = np.arange(n)
     loc = np.column_stack([2 * k, 2 * k + 1, 2 * k + 2, 2 * k + 3])
@@ -492,7 +609,7 @@ def _optimize_level(domain: Domain, metric: Metric, X0: np.ndarray, modes: list,
         return float(segment_lengths(metric, comps, X[:-1], X[1:]).sum())
 
     def assemble(X):
-        f, gl, Hl = _segment_derivatives(metric, comps, X[:-1], X[1:], step, hessian_step)
+        f, gl, Hl = _segment_derivatives(metric, comps, X[:-1], X[1:], step)
         gX = np.bincount(loc.ravel(), weights=gl.ravel(), minlength=2 * (n + 1))
         r = np.repeat(loc, 4, axis=1).ravel()
         c = np.tile(loc, (1, 4)).ravel()
@@ -500,62 +617,28 @@ def _optimize_level(domain: Domain, metric: Metric, X0: np.ndarray, modes: list,
         return float(f.sum()), Mt @ gX, (Mt @ HX @ M).tocsc()
 
     z = par.pack(X0)
-    X = unpack(z)
-    f, grad, H = assemble(X)
-    lam = 1e-8
-    eye = sp.identity(par.nv, format="csc")
-    converged = False
-    for _ in range(max_iter):
-        hscale = max(float(np.abs(H.diagonal()).max()), 1e-300)
-        dz = spsolve(H + lam * hscale * eye, -grad)
-        decrease = -float(dz @ grad)  # twice the decrease Newton predicts
-        if not np.all(np.isfinite(dz)) or decrease <= 0:
-            lam = max(lam * 100, 1e-6)
-            if lam > 1e8:
-                break
-            continue
-        if decrease <= 1e-11 * f:
-            converged = True
-            break
-        t, accepted = 1.0, False
-        for _ls in range(30):
-            X_new = unpack(par.clip(z + t * dz))
-            f_new = length(X_new)
-            if f_new <= f:
-                accepted = True
-                break
-            t *= 0.5
-        if not accepted:
-            if decrease <= 1e-9 * f:  # no progress left below the rounding of the lengths
-                converged = True
-                break
-            lam *= 100
-            if lam > 1e8:
-                break
-            continue
-        z = par.pack(X_new)
-        X, f = X_new, f_new
-        lam = max(lam / 10, 1e-12)
-        f, grad, H = assemble(X)
+    X, converged = _newton(par, unpack, length, assemble, z, scale, max_iter)
     if converged:
         return X
+    z = par.pack(X)
 
-    # quasi-Newton polish from the Newton point: robust where the length is not smooth (degenerate norms)
+    # quasi-Newton on the exact gradient: robust where the length has kinks
+    f0 = max(length(unpack(z)), 1e-300)
+
     def fun(zz):
         XX = unpack(par.clip(zz.copy()))
-        f0, gl, _ = _segment_derivatives(metric, comps, XX[:-1], XX[1:], step)
+        fl, gl, _ = _segment_derivatives(metric, comps, XX[:-1], XX[1:], step, hessian=False)
         gX = np.bincount(loc.ravel(), weights=gl.ravel(), minlength=2 * (n + 1))
-        return float(f0.sum()), Mt @ gX
+        return float(fl.sum()) / f0, (Mt @ gX) / f0
 
-    # finite bounds everywhere (scipy's L-BFGS-B is very slow with unbounded variables), wide around z
+    bounds = [(None, None)] * par.nv
     wide = 10.0 * scale
     bounds = [(float(zk) - wide, float(zk) + wide) for zk in z]
     for kk, lo, hi in par.slides:
         bounds[kk] = (max(lo, bounds[kk][0]), min(hi, bounds[kk][1]))
     res = minimize(fun, z, jac=True, method="L-BFGS-B", bounds=bounds,
-                   options={"maxiter": 300, "ftol": 1e-15, "gtol": 0.0})
-    Xp = unpack(par.clip(res.x))
-    return Xp if length(Xp) < f else X
+                   options={"maxiter": 300, "ftol": ftol, "gtol": 1e-14, "maxcor": 30})
+    return unpack(par.clip(res.x))
 
 
 def refine(
@@ -566,8 +649,10 @@ def refine(
     end_ground: int | None = None,
     closed: bool = False,
     tol: float = 1e-3,
+    atol: float = 0.0,
     start: int = 8,
     max_segments: int = 512,
+    max_rounds: int = 12,
 ) -> RefinedPath:
     """Refine a grid route into a geodesic: minimize its exact length, multilevel.
 
@@ -588,8 +673,13 @@ def refine(
         vertex is free.
     tol : float, default 1e-3
         Relative tolerance of the length.
+    atol : float, default 0
+        Absolute tolerance: a curve much shorter than the others needs no
+        relative accuracy of its own.
     start, max_segments : int
         First and largest number of segments.
+    max_rounds : int
+        Rounds of normal moves per level.
 
     Returns
     -------
@@ -598,26 +688,30 @@ def refine(
     scale = float(max(domain.lengths))
     route = np.asarray(route, dtype=float)
     shift = route[-1] - route[0] if closed else None
-    X = _resample(route, start)
-    modes: list = ["free"] * (start + 1)
-    if not closed:
-        for k, ground in ((0, start_ground), (start, end_ground)):
-            if ground is None:
-                modes[k] = "fixed"
-            else:
-                base, e, (lo, hi) = _side(domain, ground, X[k])
-                modes[k] = (base, e, lo, hi)
-    X, modes = _insert_breaks(domain, X, modes)
+    X, modes = _initial_polyline(domain, route, start, start_ground, end_ground, closed)
     history = []
     n = start
+    def length(X):
+        return float(segment_lengths(metric, domain.comps, X[:-1], X[1:]).sum())
+
     while True:
-        X = _optimize_level(domain, metric, X, _normal_modes(X, modes, closed), shift, scale)
-        X, modes = _insert_breaks(domain, X, modes)
-        Ln = float(segment_lengths(metric, domain.comps, X[:-1], X[1:]).sum())
+        # rounds of normal moves, the normals recomputed each time, until the length settles:
+        # one round cannot carry a vertex past the centre of curvature of the polyline
+        L_prev = length(X)
+        for _round in range(max_rounds):
+            X = _optimize_level(domain, metric, X, _normal_modes(X, modes, closed), shift, scale)
+            X, modes = _insert_breaks(domain, X, modes)
+            if end_ground is not None:
+                X, modes = _truncate_at_boundary(domain, end_ground, X, modes)
+            L_new = length(X)
+            if L_prev - L_new <= 1e-2 * tol * L_new:
+                break
+            L_prev = L_new
+        Ln = length(X)
         history.append(Ln)
         if len(history) >= 2:
             corr = (history[-2] - history[-1]) / 3.0
-            if abs(corr) <= tol * abs(history[-1]) or n >= max_segments:
+            if abs(corr) <= max(tol * abs(history[-1]), atol) or n >= max_segments:
                 return RefinedPath(X, history[-1] - corr, Ln, abs(corr), len(X) - 1)
         elif Ln == 0.0:
             return RefinedPath(X, 0.0, 0.0, 0.0, len(X) - 1)

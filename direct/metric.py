@@ -76,6 +76,22 @@ class Metric(ABC):
             Displacements in parameter space (reference arclength).
         """
 
+    def weight_derivative(self, r2: np.ndarray) -> np.ndarray:
+        """``d rho / d(|r|^2)``, for gradients of lengths."""
+        h = 1e-7 * np.maximum(r2, 1e-300)
+        return (self.weight(r2 + h) - self.weight(np.maximum(r2 - h, 0.0))) / (r2 + h - np.maximum(r2 - h, 0.0))
+
+    def norm_gradient(self, a: np.ndarray, b: np.ndarray, d: np.ndarray) -> np.ndarray:
+        """Gradient of :meth:`norm` with respect to ``d``, shape (m, 2)."""
+        n = self.norm(a, b, d)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            out = np.empty_like(d)
+            for k in (0, 1):
+                e = np.zeros_like(d)
+                e[:, k] = 1e-7 * np.maximum(np.abs(d).max(axis=1), 1e-300)
+                out[:, k] = (self.norm(a, b, d + e) - self.norm(a, b, d - e)) / (2 * e[:, k])
+        return np.where(np.isfinite(out), out, 0.0) * (n > 0)[:, None]
+
     @property
     def n_nodes(self) -> int:
         """Gauss-Legendre nodes per piece: exact when the integrand is polynomial, else 12."""
@@ -118,6 +134,12 @@ class GFamily(Metric):
     def norm(self, a, b, d):  # noqa: D102
         return np.sqrt(np.einsum("ij,ij->i", a, a) * d[:, 0] ** 2 + np.einsum("ij,ij->i", b, b) * d[:, 1] ** 2)
 
+    def norm_gradient(self, a, b, d):  # noqa: D102
+        n = self.norm(a, b, d)
+        g = np.column_stack([np.einsum("ij,ij->i", a, a) * d[:, 0], np.einsum("ij,ij->i", b, b) * d[:, 1]])
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return np.where(n[:, None] > 0, g / n[:, None], 0.0)
+
     def describe(self):  # noqa: D102
         return {"metric": "G", "h": self.label}
 
@@ -150,6 +172,13 @@ class G(GFamily):
 
     def weight(self, r2):  # noqa: D102
         return r2 if self.q == 2 else r2 ** (self.q / 2)
+
+    def weight_derivative(self, r2):  # noqa: D102
+        if self.q == 2:
+            return np.ones_like(r2)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            out = (self.q / 2) * r2 ** (self.q / 2 - 1)
+        return np.where(np.isfinite(out), out, 0.0)
 
     def describe(self):  # noqa: D102
         return {"metric": "G", "q": self.q}
@@ -187,8 +216,18 @@ class g(Metric):  # noqa: N801  (the paper's name)
     def weight(self, r2):  # noqa: D102
         return r2**self.p
 
+    def weight_derivative(self, r2):  # noqa: D102
+        with np.errstate(divide="ignore", invalid="ignore"):
+            out = self.p * r2 ** (self.p - 1)
+        return np.where(np.isfinite(out), out, 0.0)
+
     def norm(self, a, b, d):  # noqa: D102
         return np.hypot(d[:, 0], d[:, 1])
+
+    def norm_gradient(self, a, b, d):  # noqa: D102
+        n = self.norm(a, b, d)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return np.where(n[:, None] > 0, d / n[:, None], 0.0)
 
     def describe(self):  # noqa: D102
         return {"metric": "g", "p": self.p}
@@ -210,9 +249,19 @@ class Euclid(Metric):
     def weight(self, r2):  # noqa: D102
         return np.ones_like(r2)
 
+    def weight_derivative(self, r2):  # noqa: D102
+        return np.zeros_like(r2)
+
     def norm(self, a, b, d):  # noqa: D102
         v = a * d[:, :1] - b * d[:, 1:]
         return np.hypot(v[:, 0], v[:, 1])
+
+    def norm_gradient(self, a, b, d):  # noqa: D102
+        v = a * d[:, :1] - b * d[:, 1:]
+        n = np.hypot(v[:, 0], v[:, 1])
+        g = np.column_stack([(a * v).sum(axis=1), -(b * v).sum(axis=1)])
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return np.where(n[:, None] > 0, g / n[:, None], 0.0)
 
 
 def get_metric(metric: "str | Metric" = "G", power: float | None = None) -> Metric:
@@ -285,7 +334,7 @@ def _locate(comp, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return comp.segment_index(s), s
 
 
-def segment_lengths(metric: Metric, comps, P: np.ndarray, Q: np.ndarray) -> np.ndarray:
+def segment_lengths(metric: Metric, comps, P: np.ndarray, Q: np.ndarray, gradient: bool = False):
     """Exact metric lengths of straight segments ``P -> Q`` in a pair domain ``I_i x I_j``.
 
     Parameters
@@ -298,12 +347,19 @@ def segment_lengths(metric: Metric, comps, P: np.ndarray, Q: np.ndarray) -> np.n
         End points in parameters ``(x1, x2)`` (reference arclength); for a
         closed component the parameter may leave ``[0, length]`` and is read
         modulo the length.
+    gradient : bool, default False
+        Also return the gradient of each length with respect to ``(P1, P2, Q1, Q2)``.
 
     Returns
     -------
-    (m,) ndarray of float
+    lengths : (m,) ndarray of float
         The lengths (length units raised to the metric's homogeneity: for
         ``G`` with ``q = 2``, length^3).
+    grad : (m, 4) ndarray of float
+        Only with ``gradient=True``: the exact derivative of the piecewise
+        formula (Leibniz rule: integrals of the derivative on each piece, plus
+        the jump of the integrand at each vertex line times the motion of the
+        crossing point).
 
     Notes
     -----
@@ -316,7 +372,7 @@ def segment_lengths(metric: Metric, comps, P: np.ndarray, Q: np.ndarray) -> np.n
     m = len(P)
     ci, cj = comps
     if m == 0:
-        return np.empty(0)
+        return (np.empty(0), np.empty((0, 4))) if gradient else np.empty(0)
     ts = [np.zeros(m), np.ones(m)]
     es = [np.arange(m), np.arange(m)]
     for axis, comp in enumerate((ci, cj)):
@@ -343,12 +399,51 @@ def segment_lengths(metric: Metric, comps, P: np.ndarray, Q: np.ndarray) -> np.n
     shift2 = np.floor(mid[:, 1] / cj.length) * cj.length if cj.closed else 0.0
     base1 = ci.deformed_ring[k1] - (ci.params[k1] + shift1)[:, None] * a
     base2 = cj.deformed_ring[k2] - (cj.params[k2] + shift2)[:, None] * b
-    nodes, weights = _gauss(metric.n_nodes)
+    nodes, weights = _gauss(metric.n_nodes + (1 if gradient else 0))
     tq = ta[:, None] + (tb - ta)[:, None] * nodes[None, :]  # (pieces, nodes)
     x1 = P[pe, 0][:, None] + tq * d[:, 0][:, None]
     x2 = P[pe, 1][:, None] + tq * d[:, 1][:, None]
     r = (base1[:, None, :] + x1[..., None] * a[:, None, :]) - (base2[:, None, :] + x2[..., None] * b[:, None, :])
     r2 = np.einsum("pqk,pqk->pq", r, r)
-    integral = (metric.weight(r2) * weights[None, :]).sum(axis=1) * (tb - ta)
-    piece = integral * metric.norm(a, b, d)
-    return np.bincount(pe, weights=piece, minlength=m)
+    rho = metric.weight(r2)
+    N = metric.norm(a, b, d)
+    dt = tb - ta
+    integral = (rho * weights[None, :]).sum(axis=1) * dt
+    lengths = np.bincount(pe, weights=integral * N, minlength=m)
+    if not gradient:
+        return lengths
+    # d/dx of rho(|r(x)|^2): r depends on x1 through a and on x2 through -b
+    drho = metric.weight_derivative(r2)
+    gx1 = 2 * drho * np.einsum("pqk,pk->pq", r, a)
+    gx2 = -2 * drho * np.einsum("pqk,pk->pq", r, b)
+    w = weights[None, :] * dt[:, None]
+    one_minus = 1.0 - tq
+    dN = metric.norm_gradient(a, b, d)
+    Irho = integral
+    g = np.empty((len(pe), 4))
+    g[:, 0] = (w * one_minus * gx1).sum(axis=1) * N - Irho * dN[:, 0]
+    g[:, 1] = (w * one_minus * gx2).sum(axis=1) * N - Irho * dN[:, 1]
+    g[:, 2] = (w * tq * gx1).sum(axis=1) * N + Irho * dN[:, 0]
+    g[:, 3] = (w * tq * gx2).sum(axis=1) * N + Irho * dN[:, 1]
+    # jumps of the integrand where a piece ends on a vertex line, times the motion of that crossing
+    nxt = (pe[1:] == pe[:-1]) & (np.abs(tb[:-1] - ta[1:]) <= 1e-15)
+    p = np.flatnonzero(nxt)
+    if p.size:
+        tk = tb[p]
+        xk = P[pe[p]] + tk[:, None] * d[p]
+        rk = (base1[p] + xk[:, :1] * a[p]) - (base2[p] + xk[:, 1:] * b[p])
+        rhok = metric.weight((rk * rk).sum(axis=1))
+        ch1 = k1[p] != k1[p + 1]
+        ch2 = k2[p] != k2[p + 1]
+        n_mid = metric.norm(a[p + 1], b[p], d[p])  # through the corner: first x1's line, then x2's
+        j1 = np.where(ch1, rhok * (N[p] - np.where(ch2, n_mid, N[p + 1])), 0.0)
+        j2 = np.where(ch2, rhok * (np.where(ch1, n_mid, N[p]) - N[p + 1]), 0.0)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            for axis, jump in ((0, j1), (1, j2)):
+                da = d[p, axis]
+                okk = (jump != 0) & (da != 0)
+                g[p[okk], axis] += jump[okk] * (tk[okk] - 1.0) / da[okk]
+                g[p[okk], 2 + axis] += jump[okk] * (-tk[okk]) / da[okk]
+    grad = np.zeros((m, 4))
+    np.add.at(grad, pe, g)
+    return lengths, grad

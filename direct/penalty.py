@@ -21,7 +21,7 @@ import numpy as np
 
 from .crossings import Crossing, find_crossings
 from .errors import DirectError
-from .geodesics import Backend, closed_curve_distances, grid_distances, refine, torus_distances
+from .geodesics import Backend, RefinedPath, closed_curve_distances, grid_distances, refine, torus_distances
 from .grid import Domain, build_graph
 from .matching import solve as solve_assignment
 from .matching import solve_flow, solve_torus
@@ -297,8 +297,7 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
         T, troute = torus_distances(graph, backend)
         K = cond["winds"]
         grid_costs = {(i, j, c): float(T[c][neg[j], pos[i]]) for c in T for i in range(len(pos)) for j in range(len(neg))}
-        classes = [c for c in T if c != (0, 0)]
-        loops = closed_curve_distances(graph, classes) if K != (0, 0) or len(pos) else {}
+        loops = closed_curve_distances(graph)
         for c, (length, _) in loops.items():
             grid_costs[("closed", c)] = length
 
@@ -314,7 +313,7 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
             return troute(neg[j], pos[i], c)
 
         def refine_key(key):
-            return refine(domain, metric, polyline(key), closed=key[0] == "closed", tol=tol)
+            return refine(domain, metric, polyline(key), closed=key[0] == "closed", tol=tol, atol=atol)
 
         def ends(key):
             if key[0] == "closed":
@@ -358,8 +357,20 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
 
         def refine_key(key):
             u, v = key
-            return refine(domain, metric, route(u, v), start_ground=u if u < ng else None,
-                          end_ground=v if v < ng else None, tol=tol)
+            if (u < ng) == (v < ng):  # point to point, or boundary to boundary
+                return refine(domain, metric, route(u, v), start_ground=u if u < ng else None,
+                              end_ground=v if v < ng else None, tol=tol, atol=atol)
+            # point to boundary: every stretch of the boundary that the grid cannot rule out
+            a, g, flip = (u, v, False) if v < ng else (v, u, True)
+            best = None
+            for poly in route.candidates(a, g, 2 * (bias - 1)):
+                rp = refine(domain, metric, poly, end_ground=g, tol=tol, atol=atol)
+                if best is None or rp.length < best.length:
+                    best = rp
+            if flip:
+                best = RefinedPath(best.points[::-1].copy(), best.length, best.upper, best.error_estimate,
+                                   best.segments)
+            return best
 
         def polyline(key):
             return route(*key)
@@ -369,6 +380,7 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
             return (("ground", u) if u < ng else u - ng), (("ground", v) if v < ng else v - ng)
 
     grid_value, _ = solve(grid_costs)
+    atol = 0.1 * tol * grid_value / max(1, len(domain.points))
     value, chosen, cache = _settle(grid_costs, solve, refine_key, bias)
     curves = []
     err = 0.0

@@ -39,8 +39,8 @@ def test_penalty_json_is_one_object(cross_value):
 
 
 def test_penalty_json_options_reach_penalty(capsys):
-    assert main(["penalty", "cross", "--json", "--metric", "g", "--power", "1", "--no-refine",
-                 "--resolution", "24", "--neighbours", "8"]) == 0
+    args = "penalty cross --json --metric g --power 1 --no-refine --resolution 24 --neighbours 8"
+    assert main(args.split()) == 0
     data = json.loads(capsys.readouterr().out)
     assert data["settings"]["metric"] == "g"
     assert data["settings"]["p"] == 1.0
@@ -68,11 +68,10 @@ def test_penalty_summary_fig2(capsys):
     assert "+" in out and " -" in out  # the two crossings of Figure 2 have opposite signs
 
 
-def test_plot_writes_png(tmp_path):
+def test_plot_writes_png(tmp_path, capsys):
     target = tmp_path / "out.png"
-    proc = run("plot", "fig2", "-o", str(target), "--resolution", "32")
-    assert proc.returncode == 0, proc.stderr
-    assert proc.stdout.strip() == str(target)
+    assert main(["plot", "fig2", "-o", str(target), "--resolution", "24"]) == 0
+    assert capsys.readouterr().out.strip() == str(target)
     data = target.read_bytes()
     assert len(data) > 1000
     assert data[:8] == b"\x89PNG\r\n\x1a\n"
@@ -93,10 +92,12 @@ def test_version(capsys):
 
 
 def _scene(reference, deformed):
-    return {"components": [
-        {"name": "A", "reference": [[0, 0], [1, 0]], "deformed": [[-0.5, 0], [0.5, 0]]},
-        {"name": "B", "reference": reference, "deformed": deformed},
-    ]}
+    return {
+        "components": [
+            {"name": "A", "reference": [[0, 0], [1, 0]], "deformed": [[-0.5, 0], [0.5, 0]]},
+            {"name": "B", "reference": reference, "deformed": deformed},
+        ]
+    }
 
 
 BAD_FILES = {
@@ -155,10 +156,17 @@ def test_bad_arguments(capsys, args):
     assert_one_line_error(captured.err, code)
 
 
-def test_errors_through_python_m(tmp_path):
+def test_error_through_python_m(tmp_path):
     path = tmp_path / "bad.json"
     path.write_text(BAD_FILES["mismatched counts"])
-    for args in (["penalty", str(path)], ["penalty", "cross", "--metric", "riemann"]):
-        proc = run(*args)
-        assert proc.stdout == ""
-        assert_one_line_error(proc.stderr, proc.returncode)
+    proc = run("penalty", str(path))
+    assert proc.stdout == ""
+    assert_one_line_error(proc.stderr, proc.returncode)
+    assert "2 deformed vertices" in proc.stderr
+
+
+def test_plot_to_missing_folder(tmp_path, capsys):
+    code = main(["plot", "cross", "-o", str(tmp_path / "no" / "such" / "out.png")])
+    captured = capsys.readouterr()
+    assert captured.out == ""
+    assert_one_line_error(captured.err, code)

@@ -75,3 +75,17 @@ def test_plot_domain_draws_the_curves(fig2):
     for p in half:
         assert any(d.shape == p.path.shape and np.allclose(d, p.path) for d in drawn)
     assert ax.get_xlim()[1] > scene.components[0].length
+
+
+def test_plot_penalty_circle_without_crossings():
+    # a circle may need curves gamma without any crossing point: their domain is drawn too
+    scene = direct.scenes.get("ring")
+    result = direct.penalty(scene, resolution=16)
+    index = {c.name: k for k, c in enumerate(scene.components)}
+    domains = {tuple(sorted(int(v) for v in c.components)) for c in result.crossings}
+    domains |= {tuple(sorted(index[n] for n in p.components)) for p in result.pairs}
+    fig = plot_penalty(result, scene)
+    assert len(fig.axes) == 1 + len(domains)
+    for ax in fig.axes[1:]:
+        labels = [t.get_text() for t in ax.get_legend().get_texts()]
+        assert "seam (sides identified)" in labels  # the circle's two sides are identified

@@ -1,0 +1,329 @@
+"""The ``direct`` command line: ``direct penalty``, ``direct plot`` and ``direct scenes``.
+
+Usage::
+
+    direct penalty SCENE [--metric {G,g,euclid}] [--power P] [--tol TOL] [--resolution N]
+                         [--neighbours {8,16,32}] [--backend {scipy,networkx}] [--no-refine] [--json]
+    direct plot SCENE -o FIG.png [same options as penalty, without --json]
+    direct scenes
+    direct --version
+
+``SCENE`` is a JSON scene file (format in :mod:`direct.scene`) or the name of
+a built-in scene (``direct scenes`` lists them).  ``python -m direct`` is the
+same program.
+
+Every error that `direct` raises on purpose (:class:`direct.DirectError`) is
+reported as one line ``direct: error: <message>`` on standard error with exit
+status 2, as are command-line usage errors.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import sys
+from typing import Any, NoReturn, Sequence
+
+__all__ = ["main", "build_parser"]
+
+
+class _Parser(argparse.ArgumentParser):
+    """An argument parser whose usage errors are one line, in the same form as the other errors."""
+
+    def error(self, message: str) -> NoReturn:
+        """Report a usage error on one line of standard error and exit with status 2."""
+        self.exit(2, f"direct: error: {message} (see '{self.prog} --help')\n")
+
+
+def _add_method_options(p: argparse.ArgumentParser) -> None:
+    """Options shared by ``penalty`` and ``plot``: the arguments of :func:`direct.penalty`."""
+    p.add_argument("scene", metavar="SCENE", help="a JSON scene file or a built-in scene name (see 'direct scenes')")
+    p.add_argument(
+        "--metric",
+        choices=["G", "g", "euclid"],
+        default="G",
+        help="'G': |y1 - y2|^(2q) Id (Example 14, default); 'g': g(s) = s^p (section 3.4.2); "
+        "'euclid': the heuristic metric of section 3.1",
+    )
+    p.add_argument("--power", type=float, default=None, metavar="P", help="q of G or p of g (default 2)")
+    p.add_argument("--tol", type=float, default=1e-3, help="relative tolerance of each refined geodesic (default 1e-3)")
+    p.add_argument(
+        "--resolution", type=int, default=96, metavar="N", help="grid cells along the longer side of a domain (96)"
+    )
+    p.add_argument("--neighbours", type=int, choices=[8, 16, 32], default=16, help="grid stencil (default 16)")
+    p.add_argument("--backend", choices=["scipy", "networkx"], default="scipy", help="shortest-path backend")
+    p.add_argument(
+        "--no-refine", dest="refine", action="store_false", help="report the grid (Dijkstra) value without refinement"
+    )
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """Build the argument parser of the ``direct`` command.
+
+    Returns
+    -------
+    argparse.ArgumentParser
+    """
+    from . import __version__
+
+    parser = _Parser(
+        prog="direct",
+        description="The direct method for the topological self-contact penalty J(phi) of plane curves.",
+    )
+    parser.add_argument("--version", action="version", version=f"direct {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+
+    p = sub.add_parser(
+        "penalty",
+        help="compute the penalty J(phi) of a scene",
+        description="Compute the penalty J(phi) of a scene by the direct method (section 5.1.1).",
+    )
+    _add_method_options(p)
+    p.add_argument("--json", action="store_true", help="print one JSON object instead of the summary")
+
+    p = sub.add_parser(
+        "plot",
+        help="draw a scene, its crossings and the optimal curves gamma",
+        description="Compute the penalty and draw the scene beside the pair domains that carry crossings.",
+    )
+    _add_method_options(p)
+    p.add_argument("-o", "--output", required=True, metavar="FIG", help="figure file to write (.png, .pdf, .svg)")
+
+    sub.add_parser("scenes", help="list the built-in scenes", description="List the built-in scenes.")
+    return parser
+
+
+# -- helpers -------------------------------------------------------------------------------------------------------
+
+
+def _compute(args: argparse.Namespace):
+    """Resolve the scene and run :func:`direct.penalty` with the command-line options."""
+    from .penalty import penalty
+    from .scenes import resolve
+
+    scene = resolve(args.scene)
+    result = penalty(
+        scene,
+        args.metric,
+        power=args.power,
+        tol=args.tol,
+        resolution=args.resolution,
+        neighbours=args.neighbours,
+        backend=args.backend,
+        refine=args.refine,
+    )
+    return scene, result
+
+
+def _finite(obj: Any) -> Any:
+    """Replace non-finite floats by None so that the output is strict JSON."""
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {k: _finite(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_finite(v) for v in obj]
+    return obj
+
+
+def _g(x: float, digits: int = 7) -> str:
+    return f"{x:.{digits}g}"
+
+
+def _point(p: Sequence[float] | None) -> str:
+    return "boundary" if p is None else f"({_g(p[0], 6)}, {_g(p[1], 6)})"
+
+
+def _symbol(settings: dict) -> str:
+    """``J^G``, ``J^g`` or ``J^euclid``."""
+    return f"J^{settings.get('metric', '?')}"
+
+
+def _in_half(pair, scene) -> bool:
+    """Tell whether a curve lies in the half ``i <= j`` of ``M x M`` (``x1 < x2`` when ``i == j``)."""
+    a, b = (scene.index(n) for n in pair.components)
+    if a != b:
+        return a < b
+    if scene.components[a].closed:
+        return True  # a circle with itself is one piece, its own mirror image
+    return bool((pair.path[:, 0] - pair.path[:, 1]).mean() < 0)
+
+
+def _table(rows: list[list[str]], indent: str = "  ") -> list[str]:
+    widths = [max(len(r[k]) for r in rows) for k in range(len(rows[0]))]
+    return [indent + "  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)).rstrip() for r in rows]
+
+
+def summary(scene, result) -> str:
+    """Write a readable summary of a :class:`direct.Penalty` (what ``direct penalty`` prints).
+
+    Parameters
+    ----------
+    scene : Scene
+        The scene the result was computed for.
+    result : Penalty
+        The result of :func:`direct.penalty`.
+
+    Returns
+    -------
+    str
+    """
+    names = [c.name for c in scene.components]
+    lines = [f"scene: {scene.name or '(unnamed)'} ({len(names)} component{'s' if len(names) != 1 else ''})"]
+    rows = [
+        [c.name, "closed" if c.closed else "open", f"{c.n_vertices} vertices", f"length {_g(c.length, 6)}"]
+        for c in scene.components
+    ]
+    lines += _table(rows)
+    s = result.settings
+    metric = ", ".join(
+        f"{k}={v}" for k, v in s.items() if k not in ("metric", "tol", "resolution", "neighbours", "backend", "refine")
+    )
+    lines.append(
+        f"metric: {s.get('metric')}{f' ({metric})' if metric else ''}; tol={s.get('tol')}, "
+        f"resolution={s.get('resolution')}, neighbours={s.get('neighbours')}, backend={s.get('backend')}, "
+        f"refine={s.get('refine')}"
+    )
+    lines.append("")
+    n = len(result.crossings)
+    lines.append(f"crossings: {n}" + (" (each gives the points (x1, x2) and (x2, x1) of M x M)" if n else ""))
+    if n:
+        rows = [["#", "components", "x1", "x2", "point phi(x1) = phi(x2)", "sign"]]
+        for k, c in enumerate(result.crossings):
+            i, j = c.components
+            rows.append(
+                [
+                    str(k),
+                    f"{names[i]} x {names[j]}",
+                    _g(c.params[0], 6),
+                    _g(c.params[1], 6),
+                    _point(c.point),
+                    "+" if c.sign > 0 else "-",
+                ]
+            )
+        lines += _table(rows)
+    lines.append("")
+    lines.append(
+        f"{_symbol(s)} = {_g(result.value)} \u00b1 {result.error_estimate:.1g} "
+        f"(grid Dijkstra alone: {_g(result.grid_value)})"
+    )
+    half = [p for p in result.pairs if _in_half(p, scene)]
+    if half:
+        lines.append(
+            f"optimal curves gamma: {len(half)} on the pieces i <= j of M x M; the other pieces are their mirror "
+            "images (x1 <-> x2), with curves of the same lengths, all counted in J"
+        )
+        rows = [["domain", "from (negative point)", "to (positive point)", "length", "error"]]
+        for p in half:
+            start = "boundary" if p.start is None else f"#{p.start_crossing} {_point(p.start)}"
+            end = "boundary" if p.end is None else f"#{p.end_crossing} {_point(p.end)}"
+            if p.closed:
+                start, end = "closed curve", "-"
+            rows.append([f"{p.components[0]} x {p.components[1]}", start, end, _g(p.length), f"{p.error_estimate:.1g}"])
+        lines += _table(rows)
+    else:
+        lines.append("no curve gamma is needed: J = 0")
+    lines.append("")
+    lines.append(f"time: {result.seconds:.3g} s")
+    return "\n".join(lines)
+
+
+def _scene_descriptions() -> dict[str, str]:
+    """One-line descriptions of the built-in scenes, read from the table of the :mod:`direct.scenes` docstring."""
+    from . import scenes
+
+    desc: dict[str, str] = {}
+    rules = 0
+    current = None
+    for line in (scenes.__doc__ or "").splitlines():
+        if line.startswith("=="):
+            rules += 1
+            continue
+        if rules != 2 or not line.strip():
+            continue  # only the body of the table, between the second and third rules
+        if not line[0].isspace():
+            current, _, text = line.partition(" ")
+            desc[current] = text.strip()
+        elif current is not None:
+            desc[current] += " " + line.strip()
+    return desc
+
+
+# -- commands ------------------------------------------------------------------------------------------------------
+
+
+def _cmd_penalty(args: argparse.Namespace) -> int:
+    scene, result = _compute(args)
+    if args.json:
+        out = {"scene": scene.name, "components": [c.name for c in scene.components], **result.to_dict(scene)}
+        print(json.dumps(_finite(out), allow_nan=False))
+    else:
+        print(summary(scene, result))
+    return 0
+
+
+def _cmd_plot(args: argparse.Namespace) -> int:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from .errors import DirectError
+    from .plot import plot_penalty
+
+    folder = os.path.dirname(os.path.abspath(args.output))
+    if not os.path.isdir(folder):  # fail before the computation, not after
+        raise DirectError(f"cannot write the figure to {args.output!r}: no folder {folder!r}")
+    scene, result = _compute(args)
+    fig = plot_penalty(result, scene)
+    try:
+        fig.savefig(args.output, dpi=150, bbox_inches="tight")
+    except (OSError, ValueError) as err:
+        raise DirectError(f"cannot write the figure to {args.output!r}: {err}") from err
+    finally:
+        plt.close(fig)
+    print(args.output)
+    return 0
+
+
+def _cmd_scenes(args: argparse.Namespace) -> int:
+    from . import scenes
+
+    desc = _scene_descriptions()
+    names = scenes.names()
+    width = max(len(n) for n in names)
+    for n in names:
+        print(f"{n.ljust(width)}  {desc.get(n, '').replace('``', '')}".rstrip())
+    return 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the ``direct`` command.
+
+    Parameters
+    ----------
+    argv : sequence of str, optional
+        The arguments, without the program name (default ``sys.argv[1:]``).
+
+    Returns
+    -------
+    int
+        The exit status: 0 on success, 2 for a usage error or a
+        :class:`direct.DirectError` (reported on one line of standard error).
+    """
+    from .errors import DirectError
+
+    parser = build_parser()
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:  # --help, --version and usage errors
+        return int(exc.code or 0) if not isinstance(exc.code, str) else 2
+    command = {"penalty": _cmd_penalty, "plot": _cmd_plot, "scenes": _cmd_scenes}[args.command]
+    try:
+        return command(args)
+    except DirectError as err:
+        message = " ".join(str(err).split()) or type(err).__name__
+        print(f"direct: error: {message}", file=sys.stderr)
+        return 2

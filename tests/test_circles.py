@@ -1,0 +1,226 @@
+"""Circles in M: the annulus (Prop. 11, eq. (10)), cylinders and tori (section 3.3.4)."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+from conftest import RTOL, rigid
+
+import direct
+from direct.geodesics import grid_distances
+from direct.grid import build_graph
+from direct.matching import solve_flow
+from direct.metric import get_metric
+from direct.penalty import boundary_conditions, domains
+from direct.topology import turning_number, winding_number
+
+
+def reversed_circle(R: float, n: int = 400) -> direct.Scene:
+    return direct.scenes.circle_scene(lambda t: R * np.column_stack([np.cos(-t), np.sin(-t)]), n=n, radius=R)
+
+
+@pytest.mark.parametrize("R", [0.7, 1.3])
+def test_reversed_circle_closed_form_G(R):
+    """Two geodesics across the annulus, each 2 sqrt(2) pi R^3 (the polygon is within (pi/n)^2 of the circle)."""
+    res = direct.penalty(reversed_circle(R), "G")
+    assert res.crossings == []
+    assert res.value == pytest.approx(4 * np.sqrt(2) * np.pi * R**3, rel=1e-3)
+    assert len(res.pairs) == 2 and all(p.start is None and p.end is None for p in res.pairs)
+
+
+def test_reversed_circle_closed_form_g():
+    # |r|^4 = 16 R^4 sin^4(u / 2R) along u = x2 - x1, crossed at 45 degrees: 6 sqrt(2) pi R^5 per curve
+    R = 0.8
+    res = direct.penalty(reversed_circle(R), "g")
+    assert res.value == pytest.approx(12 * np.sqrt(2) * np.pi * R**5, rel=1e-3)
+
+
+def star(rng, n=160, k=4, amp=0.25):
+    t = 2 * np.pi * np.arange(n) / n
+    coef = rng.uniform(-1, 1, size=(k, 2)) * amp / np.arange(1, k + 1)[:, None]
+    r = 1 + sum(c[0] * np.cos((i + 1) * t) + c[1] * np.sin((i + 1) * t) for i, c in enumerate(coef))
+    return np.column_stack([r * np.cos(t), r * np.sin(t)])
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_admissible_closed_curves_have_zero_penalty(seed):
+    rng = np.random.default_rng(seed)
+    t = 2 * np.pi * np.arange(160) / 160
+    circ = np.column_stack([np.cos(t), np.sin(t)])
+    comps = [direct.Component(circ, star(rng) + rng.normal(size=2), closed=True, name="S")]
+    # an interval far away, moved rigidly
+    comps.append(direct.Component([[5, 0], [6, 0]], [[8, 1], [8, 2]], name="I"))
+    scene = direct.Scene(tuple(comps))
+    for metric in ("G", "g"):
+        res = direct.penalty(scene, metric)
+        assert res.value == 0.0 and res.pairs == []
+
+
+@pytest.mark.parametrize("k,phase", [(2, 0.0), (2, 0.7), (3, 0.3)])
+def test_every_self_crossing_of_a_circle_is_penalized(k, phase):
+    """Lissajous-like closed curves (cos t, sin(k t + phase)) cross themselves transversally."""
+    sc = direct.scenes.circle_scene(lambda t: np.column_stack([np.cos(t), np.sin(k * t + phase)]), n=241)
+    cr = direct.find_crossings(sc)
+    assert len(cr) >= 1
+    for metric in ("G", "g"):
+        assert direct.penalty(sc, metric).value > 0
+
+
+def test_figure_eight_turning_number_condition():
+    sc = direct.scenes.get("fig10")
+    comp = sc.components[0]
+    assert turning_number(comp.deformed) == 0 and turning_number(comp.reference) == 1
+    (dom,) = domains(sc, direct.find_crossings(sc))
+    assert dom.kind == "annulus"
+    assert boundary_conditions(dom) == {"flux": 1}  # #j - #phi
+    res = direct.penalty(sc)
+    assert len(res.crossings) == 1 and res.value > 0
+    assert sum(p.length for p in res.pairs) == pytest.approx(res.value, rel=1e-12)
+
+
+def test_reversing_a_circle_keeps_J_and_reversing_only_phi_changes_it():
+    sc = direct.scenes.get("fig10")
+    comp = sc.components[0]
+    base = direct.penalty(sc).value
+    both = direct.penalty(direct.Scene((comp.reversed(),))).value
+    assert both == pytest.approx(base, rel=RTOL)
+    # reversing only the deformation: turning number 0 stays 0 for the figure eight, but a circle flips
+    circle = direct.scenes.circle_scene(lambda t: np.column_stack([np.cos(t), np.sin(t)]) * 1.2)
+    assert direct.penalty(circle).value == 0.0
+    c = circle.components[0]
+    flipped = direct.Component(c.reference, np.vstack([c.deformed[:1], c.deformed[:0:-1]]), closed=True)
+    assert direct.penalty(direct.Scene((flipped,))).value > 0
+
+
+def test_cyclic_relabelling_of_a_circle_changes_nothing():
+    sc = direct.scenes.get("fig10")
+    c = sc.components[0]
+    k = 37
+    rolled = direct.Component(np.roll(c.reference, -k, axis=0), np.roll(c.deformed, -k, axis=0), closed=True)
+    assert direct.penalty(direct.Scene((rolled,))).value == pytest.approx(direct.penalty(sc).value, rel=RTOL)
+
+
+def test_rigid_motion_of_a_circle_scene():
+    sc = direct.scenes.get("fig10")
+    moved = rigid(sc, 1.1, (0.3, -4.0))
+    assert direct.penalty(moved).value == pytest.approx(direct.penalty(sc).value, rel=RTOL)
+
+
+def test_nested_circles_need_a_closed_curve():
+    """Section 3.3.4: no crossing, but the small circle jumped inside the big one."""
+    sc = direct.scenes.get("nested")
+    (dom,) = [d for d in domains(sc, []) if d.kind == "torus"]
+    K = boundary_conditions(dom)["winds"]
+    assert sorted(map(abs, K)) == [0, 1]
+    for metric in ("G", "g"):
+        res = direct.penalty(sc, metric)
+        assert res.crossings == [] and res.value > 0
+        assert all(p.closed for p in res.pairs)
+
+
+def test_ring_with_collapsed_segment_G_vanishes_g_does_not():
+    """End of section 3.4.3 and Prop. 17: J^G = 0 on this non-admissible deformation, J^g > 0."""
+    sc = direct.scenes.get("ring")
+    assert direct.penalty(sc, "G").value == 0.0
+    g = direct.penalty(sc, "g")
+    # one curve across the cylinder, |r| = 1 on the ring's vertices, length 1 along the segment, twice
+    ring = sc.components[0]
+    rmin = np.cos(np.pi / ring.n_vertices)  # the polygon's closest approach to its centre
+    assert rmin**4 * 2 - 1e-9 <= g.value <= 2 + 1e-9
+
+
+def test_circle_crossing_an_interval():
+    t = 2 * np.pi * np.arange(120) / 120
+    circ = np.column_stack([np.cos(t), np.sin(t)])
+    ring = direct.Component(circ, circ, closed=True, name="ring")
+    stick = direct.Component([[3, -1], [3, 1]], [[0.2, -2], [0.5, 2]], name="stick")
+    sc = direct.Scene((ring, stick))
+    res = direct.penalty(sc)
+    assert len(res.crossings) == 2 and {c.sign for c in res.crossings} == {-1, 1}
+    assert res.value > 0
+    assert direct.penalty(direct.Scene((ring, stick.reversed()))).value == pytest.approx(res.value, rel=RTOL)
+    assert direct.penalty(rigid(sc, 0.4, (1, 2))).value == pytest.approx(res.value, rel=RTOL)
+
+
+def test_two_overlapping_circles():
+    t = 2 * np.pi * np.arange(120) / 120
+    circ = np.column_stack([np.cos(t), np.sin(t)])
+    a = direct.Component(circ, circ, closed=True, name="a")
+    b = direct.Component(circ + [3, 0], circ + [1.2, 0], closed=True, name="b")
+    sc = direct.Scene((a, b))
+    res = direct.penalty(sc)
+    assert len(res.crossings) == 2
+    assert res.value > 0
+    swapped = direct.Scene((b, a))
+    assert direct.penalty(swapped).value == pytest.approx(res.value, rel=RTOL)
+
+
+def _brute_flow(C, supply):
+    """Enumerate families of curves on an annulus: each point's curve goes to a point or a side."""
+    n = len(supply)
+    neg = [u for u in range(2, n) if supply[u] > 0]
+    pos = [u for u in range(2, n) if supply[u] < 0]
+    best = np.inf
+    ends = pos + [0, 1]
+    for targets in itertools.product(ends, repeat=len(neg)):
+        used = [v for v in targets if v >= 2]
+        if len(set(used)) != len(used):
+            continue
+        rest = [v for v in pos if v not in used]
+        for sources in itertools.product([0, 1], repeat=len(rest)):
+            cost = sum(C[u, v] for u, v in zip(neg, targets)) + sum(C[g, v] for g, v in zip(sources, rest))
+            out0 = sum(1 for v in sources if v == 0) - sum(1 for v in targets if v == 0)
+            extra = supply[0] - out0  # curves from side 0 to side 1 (or back) make up the rest
+            cost += abs(extra) * (C[0, 1] if extra > 0 else C[1, 0])
+            best = min(best, cost)
+    return best
+
+
+@pytest.mark.parametrize("name", ["fig10", "fig13"])
+def test_flow_against_enumeration(name):
+    sc = direct.scenes.get(name)
+    met = get_metric("G")
+    for dom in domains(sc, direct.find_crossings(sc)):
+        if len(dom.points) > 8:
+            pytest.skip("too many points to enumerate")
+        g = build_graph(dom, met, resolution=32)
+        T, _ = grid_distances(g)
+        supply = np.zeros(T.shape[0], dtype=int)
+        supply[2 + np.flatnonzero(dom.signs < 0)] = 1
+        supply[2 + np.flatnonzero(dom.signs > 0)] = -1
+        supply[0] = boundary_conditions(dom)["flux"]
+        supply[1] = -supply[0] - supply[2:].sum()
+        assert solve_flow(T, supply)[0] == pytest.approx(_brute_flow(T, supply), rel=1e-9)
+
+
+@pytest.mark.parametrize("name", ["fig11", "fig13"])
+def test_multiple_covers_get_a_value(name):
+    res = direct.penalty(name)
+    assert np.isfinite(res.value) and res.value > 0
+
+
+def test_exact_double_cover_is_decided_or_refused():
+    """Vertices on top of each other: the perturbation rule decides, or a clear error says how to perturb."""
+    sc = direct.scenes.circle_scene(lambda t: np.column_stack([np.cos(2 * t), np.sin(2 * t)]), n=64)
+    try:
+        res = direct.penalty(sc)
+    except direct.DegenerateError as err:
+        assert "perturb" in str(err)
+    else:
+        assert np.isfinite(res.value) and res.value >= 0
+
+
+def test_winding_and_turning_numbers():
+    t = 2 * np.pi * np.arange(50) / 50
+    c = np.column_stack([np.cos(t), np.sin(t)])
+    assert winding_number(c, [0.1, 0.2]) == 1 and winding_number(c[::-1], [0, 0]) == -1
+    assert winding_number(c, [3, 0]) == 0
+    twice = np.column_stack([np.cos(2 * t), np.sin(2 * t)])
+    assert turning_number(twice) == 2 and winding_number(twice, [0, 0]) == 2
+    with pytest.raises(direct.DegenerateError):
+        winding_number(c, c[3])
+    # an exact reversal (a hairpin) is decided by the perturbation, and the total stays an integer
+    hairpin = np.array([[0, 0], [2, 0], [1, 0], [1, 1]], dtype=float)
+    assert turning_number(hairpin) in (-1, 0, 1)
