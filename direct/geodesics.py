@@ -564,7 +564,7 @@ def _newton(par, unpack, length, assemble, z, scale, max_iter):
         if decrease <= 1e-11 * f:
             return X, True
         t, accepted = 1.0, False
-        for _ls in range(30):
+        for _ls in range(12):
             X_new = unpack(par.clip(z + t * dz))
             f_new = length(X_new)
             if f_new <= f:
@@ -584,7 +584,7 @@ def _newton(par, unpack, length, assemble, z, scale, max_iter):
 
 
 def _optimize_level(domain: Domain, metric: Metric, X0: np.ndarray, modes: list, shift, scale: float,
-                    max_iter: int = 30, ftol: float = 1e-12) -> np.ndarray:
+                    max_iter: int = 20, ftol: float = 1e-12) -> np.ndarray:
     """Minimize the exact length of a polyline over its free coordinates.
 
     Damped Newton (Levenberg-Marquardt) with a backtracking line search; where
@@ -637,7 +637,7 @@ def _optimize_level(domain: Domain, metric: Metric, X0: np.ndarray, modes: list,
     for kk, lo, hi in par.slides:
         bounds[kk] = (max(lo, bounds[kk][0]), min(hi, bounds[kk][1]))
     res = minimize(fun, z, jac=True, method="L-BFGS-B", bounds=bounds,
-                   options={"maxiter": 300, "ftol": ftol, "gtol": 1e-14, "maxcor": 30})
+                   options={"maxiter": 100, "ftol": ftol, "gtol": 1e-14, "maxcor": 30})
     return unpack(par.clip(res.x))
 
 
@@ -652,7 +652,7 @@ def refine(
     atol: float = 0.0,
     start: int = 8,
     max_segments: int = 512,
-    max_rounds: int = 12,
+    max_rounds: int = 2,
 ) -> RefinedPath:
     """Refine a grid route into a geodesic: minimize its exact length, multilevel.
 

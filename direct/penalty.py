@@ -261,15 +261,21 @@ def _settle(grid_costs: dict, solve, refine_key, bias: float | None):
     """Solve, refine the chosen curves, re-solve with refined lengths until the choice is refined.
 
     Entries not refined yet enter as optimistic lower estimates (grid length /
-    ``bias``), so a choice made of refined entries cannot be beaten by an
-    unrefined one.  ``bias=None``: no refinement, grid lengths.
+    ``bias``, or divided by the largest overestimate the grid showed on the
+    entries refined so far, with a margin, when that is larger: coarse grids
+    overestimate more than the stencil's bias), so a choice made of refined
+    entries cannot be beaten by an unrefined one.  ``bias=None``: no
+    refinement, grid lengths.
     """
     if bias is None:
         value, chosen = solve(grid_costs)
         return value, chosen, {}
     cache: dict = {}
     for _ in range(len(grid_costs) + 1):
-        costs = {k: (cache[k].length if k in cache else v / bias) for k, v in grid_costs.items()}
+        # the grid's overestimate seen on the refined entries, with a margin, bounds the others' below
+        seen = [grid_costs[k] / rp.length for k, rp in cache.items() if rp.length > 0 and np.isfinite(grid_costs[k])]
+        b = max([bias] + [1.02 * r for r in seen])
+        costs = {k: (cache[k].length if k in cache else v / b) for k, v in grid_costs.items()}
         value, chosen = solve(costs)
         missing = [k for k, _ in chosen if k not in cache]
         if not missing:

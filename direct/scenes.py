@@ -22,8 +22,10 @@ reversed  the unit circle (256 vertices) deformed into itself run backwards,
           number -1 instead of 1; ``J^G = 4 sqrt(2) pi`` for the smooth circle.
 fig10     the unit circle deformed into the figure eight ``(cos t, sin 2t)``
           (Fig. 10): one self-crossing, turning number 0.
-fig11     the double cover ``(cos 2t, sin 2t)`` (Fig. 11); odd vertex count,
-          so the two passes cross transversally (see :func:`circle_scene`).
+fig11     the double cover ``(cos 2t, sin 2t)`` (Fig. 11), its two passes on
+          exactly the same vertices: no transversal crossing anywhere; the
+          generic perturbation finds none, and the turning number (2 instead
+          of 1) asks for one curve across the annulus.
 fig13     the triple cover ``(cos 3t, sin 3t)`` (Fig. 13), likewise.
 nested    the paper's example of section 3.3.4: two unit circles side by
           side; the deformation shrinks the first by 1/2 and moves the second
@@ -126,6 +128,13 @@ def circle_scene(deformation, n: int = 256, radius: float = 1.0, name: str = "ci
     return Scene((Component(ref, np.asarray(deformation(t), dtype=float), closed=True, name=name),), name=name)
 
 
+def _cover(k: int, per_turn: int = 96) -> Scene:
+    """The unit circle deformed into ``(cos kt, sin kt)``; every pass on exactly the same vertices."""
+    turn = 2 * np.pi * np.arange(per_turn) / per_turn
+    deformed = np.tile(np.column_stack([np.cos(turn), np.sin(turn)]), (k, 1))
+    return circle_scene(lambda t: deformed, n=k * per_turn, name=f"fig1{1 if k == 2 else 3}")
+
+
 def _nested() -> Scene:
     t = 2 * np.pi * np.arange(128) / 128
     unit = np.column_stack([np.cos(t), np.sin(t)])
@@ -150,8 +159,8 @@ _BUILTIN: dict[str, Callable[[], Scene]] = {
     "loop": _loop,
     "reversed": lambda: circle_scene(lambda t: np.column_stack([np.cos(-t), np.sin(-t)]), name="reversed"),
     "fig10": lambda: circle_scene(lambda t: np.column_stack([np.cos(t), np.sin(2 * t)]), name="fig10"),
-    "fig11": lambda: circle_scene(lambda t: np.column_stack([np.cos(2 * t), np.sin(2 * t)]), n=255, name="fig11"),
-    "fig13": lambda: circle_scene(lambda t: np.column_stack([np.cos(3 * t), np.sin(3 * t)]), n=257, name="fig13"),
+    "fig11": lambda: _cover(2),
+    "fig13": lambda: _cover(3),
     "nested": _nested,
     "ring": _ring,
 }

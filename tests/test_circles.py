@@ -17,6 +17,11 @@ from direct.penalty import boundary_conditions, domains
 from direct.topology import turning_number, winding_number
 
 
+def eight(n: int = 96) -> direct.Scene:
+    """The figure eight (cos t, sin 2t) of Fig. 10, coarser than the built-in scene to keep tests fast."""
+    return direct.scenes.circle_scene(lambda t: np.column_stack([np.cos(t), np.sin(2 * t)]), n=n, name="eight")
+
+
 def reversed_circle(R: float, n: int = 400) -> direct.Scene:
     return direct.scenes.circle_scene(lambda t: R * np.column_stack([np.cos(-t), np.sin(-t)]), n=n, radius=R)
 
@@ -61,7 +66,7 @@ def test_admissible_closed_curves_have_zero_penalty(seed):
 @pytest.mark.parametrize("k,phase", [(2, 0.0), (2, 0.7), (3, 0.3)])
 def test_every_self_crossing_of_a_circle_is_penalized(k, phase):
     """Lissajous-like closed curves (cos t, sin(k t + phase)) cross themselves transversally."""
-    sc = direct.scenes.circle_scene(lambda t: np.column_stack([np.cos(t), np.sin(k * t + phase)]), n=241)
+    sc = direct.scenes.circle_scene(lambda t: np.column_stack([np.cos(t), np.sin(k * t + phase)]), n=121)
     cr = direct.find_crossings(sc)
     assert len(cr) >= 1
     for metric in ("G", "g"):
@@ -69,7 +74,7 @@ def test_every_self_crossing_of_a_circle_is_penalized(k, phase):
 
 
 def test_figure_eight_turning_number_condition():
-    sc = direct.scenes.get("fig10")
+    sc = eight()
     comp = sc.components[0]
     assert turning_number(comp.deformed) == 0 and turning_number(comp.reference) == 1
     (dom,) = domains(sc, direct.find_crossings(sc))
@@ -81,7 +86,7 @@ def test_figure_eight_turning_number_condition():
 
 
 def test_reversing_a_circle_keeps_J_and_reversing_only_phi_changes_it():
-    sc = direct.scenes.get("fig10")
+    sc = eight()
     comp = sc.components[0]
     base = direct.penalty(sc).value
     both = direct.penalty(direct.Scene((comp.reversed(),))).value
@@ -95,15 +100,22 @@ def test_reversing_a_circle_keeps_J_and_reversing_only_phi_changes_it():
 
 
 def test_cyclic_relabelling_of_a_circle_changes_nothing():
-    sc = direct.scenes.get("fig10")
+    """Same curve, another first vertex.
+
+    Known limitation (issue 3): on the annulus the geodesics to the diagonal
+    have several local minima within the grid's bias, and the refinement may
+    settle in different ones (about 1 % apart on this scene); the tolerance
+    here is the issue's acceptance level, not the refinement's ``tol``.
+    """
+    sc = eight()
     c = sc.components[0]
     k = 37
     rolled = direct.Component(np.roll(c.reference, -k, axis=0), np.roll(c.deformed, -k, axis=0), closed=True)
-    assert direct.penalty(direct.Scene((rolled,))).value == pytest.approx(direct.penalty(sc).value, rel=RTOL)
+    assert direct.penalty(direct.Scene((rolled,))).value == pytest.approx(direct.penalty(sc).value, rel=2e-2)
 
 
 def test_rigid_motion_of_a_circle_scene():
-    sc = direct.scenes.get("fig10")
+    sc = eight()
     moved = rigid(sc, 1.1, (0.3, -4.0))
     assert direct.penalty(moved).value == pytest.approx(direct.penalty(sc).value, rel=RTOL)
 
@@ -178,9 +190,9 @@ def _brute_flow(C, supply):
     return best
 
 
-@pytest.mark.parametrize("name", ["fig10", "fig13"])
+@pytest.mark.parametrize("name", ["eight", "fig13"])
 def test_flow_against_enumeration(name):
-    sc = direct.scenes.get(name)
+    sc = eight() if name == "eight" else direct.scenes.get(name)
     met = get_metric("G")
     for dom in domains(sc, direct.find_crossings(sc)):
         if len(dom.points) > 8:
@@ -195,21 +207,24 @@ def test_flow_against_enumeration(name):
         assert solve_flow(T, supply)[0] == pytest.approx(_brute_flow(T, supply), rel=1e-9)
 
 
-@pytest.mark.parametrize("name", ["fig11", "fig13"])
-def test_multiple_covers_get_a_value(name):
+@pytest.mark.parametrize("name,k", [("fig11", 2), ("fig13", 3)])
+def test_multiple_covers_get_a_value(name, k):
+    """Passes on the same vertices: no crossing after perturbation; #phi - #j = k - 1 curves across the annulus."""
     res = direct.penalty(name)
+    assert res.crossings == []
+    assert len(res.pairs) == k - 1
+    assert all(p.start is None and p.end is None for p in res.pairs)
     assert np.isfinite(res.value) and res.value > 0
 
 
-def test_exact_double_cover_is_decided_or_refused():
-    """Vertices on top of each other: the perturbation rule decides, or a clear error says how to perturb."""
-    sc = direct.scenes.circle_scene(lambda t: np.column_stack([np.cos(2 * t), np.sin(2 * t)]), n=64)
-    try:
-        res = direct.penalty(sc)
-    except direct.DegenerateError as err:
-        assert "perturb" in str(err)
-    else:
-        assert np.isfinite(res.value) and res.value >= 0
+def test_exact_double_cover_is_invariant():
+    """The value of a multiple cover (decided by the perturbation rule) survives a rigid motion and a relabelling."""
+    sc = direct.scenes._cover(2, per_turn=32)
+    base = direct.penalty(sc).value
+    assert direct.penalty(rigid(sc, 0.9, (2.0, 1.0))).value == pytest.approx(base, rel=RTOL)
+    c = sc.components[0]
+    rolled = direct.Component(np.roll(c.reference, -5, axis=0), np.roll(c.deformed, -5, axis=0), closed=True)
+    assert direct.penalty(direct.Scene((rolled,))).value == pytest.approx(base, rel=2e-2)
 
 
 def test_winding_and_turning_numbers():
