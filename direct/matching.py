@@ -150,8 +150,12 @@ def solve_flow(cost: np.ndarray, supply: np.ndarray) -> tuple[float, list[tuple[
 
     Examples
     --------
-    >>> solve_flow([[0, 1.0, 0.4], [1.0, 0, 0.7], [0.4, 0.7, 0]], [0, 1, -1])  # ground, -, +
-    (1.0, [(1, 2, 1)])
+    Terminal 0 is the boundary, 1 a negative point, 2 a positive point:
+
+    >>> solve_flow([[0, 1.0, 0.4], [1.0, 0, 0.7], [0.4, 0.7, 0]], [0, 1, -1])
+    (0.7, [(1, 2, 1)])
+    >>> solve_flow([[0, 0.2, 0.4], [0.2, 0, 0.7], [0.4, 0.7, 0]], [0, 1, -1])
+    (0.6000000000000001, [(0, 2, 1), (1, 0, 1)])
     """
     from scipy.optimize import linprog
 
