@@ -16,6 +16,7 @@ Quick start
 """
 
 from . import scenes
+from .crossings import Crossing, find_crossings
 from .errors import (
     ConvergenceError,
     DegenerateError,
@@ -24,9 +25,8 @@ from .errors import (
     SceneError,
     SceneFileError,
 )
-from .scene import Component, Scene, load_scene
-from .crossings import Crossing, find_crossings
 from .penalty import Penalty, penalty
+from .scene import Component, Scene, load_scene
 
 __all__ = [
     "Component",

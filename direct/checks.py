@@ -124,10 +124,12 @@ def check_scene(scene) -> None:
         ia, ib = int(idx[a[k]]), int(idx[b[k]])
         where = shapely.intersection(lines[a[k]], lines[b[k]])
         pt = shapely.get_coordinates(where)[0].tolist()
+        ea = (ia + 1) % ca.n_vertices if ca.closed else ia + 1
+        eb = (ib + 1) % cb.n_vertices if cb.closed else ib + 1
         raise SceneError(
             "the reference is not an embedding: "
-            f"segment {ia} (vertices {ia}-{(ia + 1) % ca.n_vertices if ca.closed else ia + 1}) of component {ca.name!r} meets "
-            f"segment {ib} (vertices {ib}-{(ib + 1) % cb.n_vertices if cb.closed else ib + 1}) of component {cb.name!r} "
+            f"segment {ia} (vertices {ia}-{ea}) of component {ca.name!r} meets "
+            f"segment {ib} (vertices {ib}-{eb}) of component {cb.name!r} "
             f"near {pt}; the reference configuration j must not touch itself (move the components apart)"
         )
 

@@ -106,7 +106,6 @@ def grid_distances(graph: GridGraph, backend: Backend = "scipy") -> tuple[np.nda
     """
     src, dst = graph.sources, graph.targets
     dist, node_route = _shortest(graph.matrix, src, backend)
-    ng = graph.n_grounds
 
     def route(a: int, b: int) -> np.ndarray:
         return graph.node_path(node_route(a, dst[b]))

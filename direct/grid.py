@@ -81,7 +81,7 @@ def stencil(neighbours: int) -> np.ndarray:
 
 @dataclass(frozen=True, eq=False)
 class Domain:
-    """One piece of ``M x M \\ Delta`` with its crossing points (see the module docstring).
+    r"""One piece of ``M x M \ Delta`` with its crossing points (see the module docstring).
 
     Parameters
     ----------
@@ -325,7 +325,9 @@ def _dedupe_min(r, c, w, k):
     return a[first], b[first], w[first], k[first], order[first]
 
 
-def build_graph(domain: Domain, metric: Metric, resolution: int = 96, neighbours: int = 16, window: int = 2) -> GridGraph:
+def build_graph(
+    domain: Domain, metric: Metric, resolution: int = 96, neighbours: int = 16, window: int = 2
+) -> GridGraph:
     """Build the grid graph of a domain.
 
     Parameters

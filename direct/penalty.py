@@ -9,6 +9,62 @@ Convention: ``value`` is ``J`` over the whole of ``M x M`` as in eq. (34):
 each geometric crossing ``phi(x1) = phi(x2)`` gives the two signed points
 ``(x1, x2)`` and ``(x2, x1)``, so every curve ``gamma`` of one half of
 ``M x M`` has a mirror image in the other and both are listed in ``pairs``.
+
+Circles: the conditions on gamma, derived from eq. (6)
+------------------------------------------------------
+The paper states ``Gamma(phi)`` for unions of intervals (Prop. 9, eq. (9))
+and for one circle (Prop. 11, eq. (10)) and leaves the general case aside
+(3.3.4).  All cases follow from one reading of eq. (6).  Let ``c`` be a
+closed loop of ``M x M`` that avoids the crossing points and the diagonal,
+and ``omega`` a closed 1-form supported in a thin tube around ``c``, the
+Poincare dual of ``c``.  The left side of eq. (6), ``int_gamma omega ^ n``, is
+the algebraic intersection number ``I(c, gamma)`` (sign ``det(c', gamma')``);
+the right side is ``-1/2pi`` times the period ``P(c) = int_c Phi_phi`` (with
+``Phi_phi = grad theta_phi - grad theta_j``, section 5.1.2).  So gamma is
+admissible for eq. (6) if and only if, for every such loop,
+
+    ``I(c, gamma) = -P(c) / 2 pi``.                                     (*)
+
+Check on a small loop around a crossing point ``x`` of sign ``s``: there
+``P(c) / 2 pi = sign det grad r_phi = -s`` (``grad r_phi = [phi'(x1),
+-phi'(x2)]``), and (*) says that ``s`` curves end at ``x`` net: Prop. 9.
+Curves run from the negative points (``gamma(0)``) to the positive ones
+(``gamma(1)``).  The loops that remain generate the homology of each piece
+of ``M x M`` modulo the crossing points:
+
+* ``I_i x I_j``, and each triangle of ``I_i x I_i``: none; the boundary
+  absorbs any number of ends: program (34).
+* ``S^1 x I`` (a cylinder; local coordinates ``s`` around the circle and ``v``
+  along the interval): the loop ``s -> (s, v0)`` below every crossing point.
+  With ``e_s, e_v`` the local axes in the ``(x1, x2)`` plane, a curve going up
+  through it counts ``det(e_s, e_v)``, so the net number of curves leaving the
+  end circle ``v = 0`` is ``F0 = -det(e_s, e_v) P / 2 pi``, where ``P / 2 pi`` is
+  the winding number of ``phi`` on the circle around ``phi(v0)`` on the
+  interval, minus the same for ``j``.
+* ``S^1 x S^1 \ Delta`` (one circle; local ``s = x1``, ``v = x2 - x1``): an
+  annulus whose two boundary circles are the two sides of the diagonal.
+  Near ``v = 0``, ``r_phi(s, s + v) ~ -v phi'(s)``, so ``P / 2 pi`` on the loop
+  ``s -> (s, s + v0)`` is the turning number ``#phi`` minus ``#j``, and
+  ``F0 = #j - #phi`` curves leave the side ``v = 0`` (``B_0^-``) net: this is
+  eq. (10), with curves that cross the diagonal counted as one curve ending on
+  one side and one starting on the other.
+* ``S^1_i x S^1_j`` (a torus): the two seams ``s = 0`` and ``v = 0``; (*) fixes
+  the total signed number of crossings of each seam by the family:
+  ``K_s = P(seam s) / 2 pi`` (the winding number of ``phi_j`` around a point of
+  ``phi_i``, minus the reference one) and ``K_v = -P(seam v) / 2 pi``.  Closed
+  curves may be needed: the example ``(-M1) x {a}`` of section 3.3.4.
+
+On the cylinder and the annulus (*) depends only on where curves end, so
+each pair of terminals (boundary circles and crossing points) needs only its
+shortest curve, and the least family is a min-cost flow with the supplies
+above (:func:`direct.matching.solve_flow`); a curve from one boundary circle
+to the other is allowed.  On the torus the shortest curve of each homotopy
+class matters: distances come from a 3 x 3 block of the universal cover, and
+a small integer program picks paths and closed curves whose classes add up to
+``(K_s, K_v)`` (:func:`direct.matching.solve_torus`).  Within one piece, the
+conditions are checked in the tests against brute-force enumeration, and
+``J = 0`` exactly when no condition asks for a curve (Prop. 8), as on every
+admissible deformation.
 """
 
 from __future__ import annotations
@@ -302,7 +358,9 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
     if domain.kind == "torus":
         T, troute = torus_distances(graph, backend)
         K = cond["winds"]
-        grid_costs = {(i, j, c): float(T[c][neg[j], pos[i]]) for c in T for i in range(len(pos)) for j in range(len(neg))}
+        grid_costs = {
+            (i, j, c): float(T[c][neg[j], pos[i]]) for c in T for i in range(len(pos)) for j in range(len(neg))
+        }
         loops = closed_curve_distances(graph)
         for c, (length, _) in loops.items():
             grid_costs[("closed", c)] = length
@@ -342,7 +400,8 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
         if ng == 1:  # intervals: the paper's assignment program (34)
 
             def solve(costs):
-                A_pm = np.array([[costs.get((1 + j, 1 + i), np.inf) for j in neg] for i in pos]).reshape(len(pos), len(neg))
+                A_pm = np.array([[costs.get((1 + j, 1 + i), np.inf) for j in neg] for i in pos])
+                A_pm = A_pm.reshape(len(pos), len(neg))
                 A_p0 = np.array([costs[(0, 1 + i)] for i in pos])
                 A_0m = np.array([costs[(1 + j, 0)] for j in neg])
                 value, pairs = solve_assignment(A_pm, A_p0, A_0m)

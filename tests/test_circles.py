@@ -239,3 +239,29 @@ def test_winding_and_turning_numbers():
     # an exact reversal (a hairpin) is decided by the perturbation, and the total stays an integer
     hairpin = np.array([[0, 0], [2, 0], [1, 0], [1, 1]], dtype=float)
     assert turning_number(hairpin) in (-1, 0, 1)
+
+
+@pytest.mark.parametrize("metric,rel", [("G", 1e-3), ("g", 2e-3)])
+def test_torus_closed_curve_against_independent_minimization(metric, rel):
+    """Nested circles: the closed curve of class (1, 0) as a Fourier graph x2 = f(x1), minimized by BFGS."""
+    from scipy.optimize import minimize
+
+    from direct.metric import segment_lengths
+
+    sc = direct.scenes.get("nested")
+    c1, c2 = sc.components
+    met = get_metric(metric)
+    K, N = 4, 400
+    s = np.linspace(0, 1, N + 1)
+    k = np.arange(1, K + 1)
+    basis_c, basis_s = np.cos(2 * np.pi * np.outer(s, k)), np.sin(2 * np.pi * np.outer(s, k))
+
+    def length(z):
+        f = z[0] + basis_c @ z[1 : 1 + K] + basis_s @ z[1 + K :]
+        X = np.column_stack([s * c1.length, f])
+        return segment_lengths(met, (c1, c2), X[:-1], X[1:]).sum()
+
+    starts = np.linspace(0, c2.length, 4, endpoint=False)
+    best = min(minimize(length, np.r_[c0, np.zeros(2 * K)], method="BFGS").fun for c0 in starts)
+    res = direct.penalty(sc, metric)
+    assert res.value / 2 == pytest.approx(best, rel=rel)
