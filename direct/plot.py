@@ -90,6 +90,17 @@ def _sign_markers(ax, pts: np.ndarray, signs: np.ndarray, size: float = 110, alp
     return out
 
 
+def _legend_below(ax, handles):
+    """A legend under the axis label, a fixed distance below the axes whatever their height."""
+    from matplotlib.transforms import offset_copy
+
+    below = offset_copy(ax.transAxes, fig=ax.figure, y=-36, units="points")
+    return ax.legend(
+        handles=handles, loc="upper left", bbox_to_anchor=(0.0, 0.0), bbox_transform=below,
+        fontsize=8, ncol=2, frameon=False,
+    )
+
+
 def plot_scene(scene, crossings=None, ax=None) -> list[Any]:
     """Draw a scene: reference (light, dashed), deformation (solid) and the signed crossings.
 
@@ -117,7 +128,6 @@ def plot_scene(scene, crossings=None, ax=None) -> list[Any]:
     :attr:`direct.Penalty.crossings`).
     """
     from matplotlib.lines import Line2D
-    from matplotlib.transforms import offset_copy
 
     scene = _resolve(scene)
     ax = _axes(ax)
@@ -201,18 +211,7 @@ def plot_scene(scene, crossings=None, ax=None) -> list[Any]:
         handles.append(
             Line2D([], [], ls="", marker=_MINUS, ms=10, mfc=_NEG, mec="white", label="crossing, sign \u22121")
         )
-    below = offset_copy(ax.transAxes, fig=ax.figure, y=-36, units="points")  # under the axis label
-    artists.append(
-        ax.legend(
-            handles=handles,
-            loc="upper left",
-            bbox_to_anchor=(0.0, 0.0),
-            bbox_transform=below,
-            fontsize=8,
-            ncol=2,
-            frameon=False,
-        )
-    )
+    artists.append(_legend_below(ax, handles))
     ax.set_aspect("equal", adjustable="datalim")
     ax.margins(0.08)
     ax.grid(True, color="0.92", zorder=0)
@@ -326,7 +325,6 @@ def plot_domain(result, scene, pair=(0, 1), ax=None, background: bool = True) ->
     """
     from matplotlib.lines import Line2D
     from matplotlib.patches import Polygon
-    from matplotlib.transforms import offset_copy
 
     scene = _resolve(scene)
     ax = _axes(ax)
@@ -489,19 +487,7 @@ def plot_domain(result, scene, pair=(0, 1), ax=None, background: bool = True) ->
         handles.append(Line2D([], [], color="#2ca02c", lw=2.2, label="optimal curve \u03b3"))
     if any((p.start is None or p.end is None) and not p.closed for p in curves):
         handles.append(Line2D([], [], ls="", marker="s", ms=8, mfc="white", mec="k", mew=1.5, label="free end"))
-    # the legend goes under the axis label, a fixed distance below the axes whatever their height
-    below = offset_copy(ax.transAxes, fig=ax.figure, y=-36, units="points")
-    artists.append(
-        ax.legend(
-            handles=handles,
-            loc="upper left",
-            bbox_to_anchor=(0.0, 0.0),
-            bbox_transform=below,
-            fontsize=8,
-            ncol=2,
-            frameon=False,
-        )
-    )
+    artists.append(_legend_below(ax, handles))
     ax.set_aspect("equal")
     pad = 0.04 * max(Li, Lj)
     ax.set_xlim(-pad, Li + pad)
