@@ -1,0 +1,187 @@
+"""Side-by-side benchmark of ways to compute J, in one process.
+
+Run ``python validation/benchmark.py`` (about a minute).  It writes, beside
+this file, ``benchmark.csv`` (one row per run), ``benchmark.png`` (relative
+error against wall time, log-log) and ``benchmark.md`` (a summary with
+ratios).  Times are wall times on a shared machine: read the ratios, and the
+``calibration`` row (a fixed numpy workload timed in the same run) to compare
+runs made on different days.
+
+Methods, on the 60-degree crossing (``J^G`` known from shared/NUMERICS.md):
+
+* ``direct``: the pipeline (grid Dijkstra, then refined geodesics) at several tolerances;
+* ``dijkstra-8``, ``dijkstra-16``: grid Dijkstra alone at several resolutions;
+* ``networkx``: the same grid with networkx's Dijkstra (the straightforward implementation);
+* ``skfmm-1``, ``skfmm-2``: scikit-fmm fast marching (orders 1 and 2) on the same
+  metric, which is isotropic here (``|r|^2 |dx|`` with unit speeds).
+
+Plus the assignment program (34) solved by ``linear_sum_assignment`` against
+the paper's enumeration, and the growth of the pipeline's time with the
+number of crossings.
+"""
+
+from __future__ import annotations
+
+import csv
+import os
+import time
+
+import numpy as np
+
+import direct
+from direct.matching import brute_force, solve
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+EXACT = 2 * 0.2581226580725618  # J^G of cross60 (shared/NUMERICS.md)
+
+
+def calibration() -> float:
+    """Seconds of a fixed numpy workload (sorting and a matrix product)."""
+    rng = np.random.default_rng(0)
+    a = rng.random(2_000_000)
+    m = rng.random((300, 300))
+    t0 = time.perf_counter()
+    for _ in range(3):
+        np.sort(a)
+        m @ m
+    return (time.perf_counter() - t0) / 3
+
+
+def timed(fn, repeat: int = 1):
+    best, out = np.inf, None
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        out = fn()
+        best = min(best, time.perf_counter() - t0)
+    return out, best
+
+
+def fmm_value(n: int, order: int) -> float:
+    """Twice the travel time from the boundary of [-1, 1]^2 to the crossing at 0, speed 1 / |r|^2."""
+    import skfmm
+
+    x = np.linspace(-1, 1, n)
+    X1, X2 = np.meshgrid(x, x, indexing="ij")
+    c = np.cos(np.pi / 3)
+    rho = X1**2 + X2**2 - 2 * X1 * X2 * c
+    rho = np.maximum(rho, 1e-6 * rho.max())
+    h = x[1] - x[0]
+    phi = np.minimum(np.minimum(X1 + 1, 1 - X1), np.minimum(X2 + 1, 1 - X2)) - 0.5 * h  # boundary just inside
+    t = skfmm.travel_time(phi, 1.0 / rho, dx=[float(h), float(h)], order=order)
+    mid = n // 2
+    return 2 * float(t[mid, mid])
+
+
+def zigzag(n_cross: int, seed: int = 0) -> direct.Scene:
+    """A straight line crossed ``n_cross`` times by a zigzag (alternating signs)."""
+    rng = np.random.default_rng(seed)
+    x = np.linspace(0, n_cross, n_cross + 1)
+    x[0], x[-1] = -0.5, n_cross + 0.5
+    y = np.where(np.arange(n_cross + 1) % 2 == 0, 1.0, -1.0) * rng.uniform(0.5, 1.0, n_cross + 1)
+    ref = np.column_stack([np.linspace(-0.5, n_cross + 0.5, n_cross + 1), np.full(n_cross + 1, 5.0)])
+    line = direct.Component([[-1, 0], [n_cross + 1, 0]], [[-1, 0], [n_cross + 1, 0]], name="line")
+    return direct.Scene((line, direct.Component(ref, np.column_stack([x, y]), name="zigzag")))
+
+
+def main() -> list[dict]:
+    rows: list[dict] = []
+    cal = calibration()
+    rows.append(dict(method="calibration", setting="numpy workload", value="", rel_error="", seconds=cal))
+    scene = direct.scenes.get("cross60")
+    direct.penalty(scene)  # warm up
+
+    for tol in [1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-7]:
+        res, dt = timed(lambda: direct.penalty(scene, tol=tol), repeat=3)
+        rows.append(dict(method="direct", setting=f"tol={tol:g}", value=res.value,
+                         rel_error=abs(res.value - EXACT) / EXACT, seconds=dt))
+    for nb in (8, 16):
+        for resolution in (24, 48, 96, 192, 384):
+            res, dt = timed(lambda: direct.penalty(scene, refine=False, neighbours=nb, resolution=resolution), 2)
+            rows.append(dict(method=f"dijkstra-{nb}", setting=f"N={resolution}", value=res.value,
+                             rel_error=abs(res.value - EXACT) / EXACT, seconds=dt))
+    for resolution in (24, 48, 96):
+        res, dt = timed(lambda: direct.penalty(scene, refine=False, backend="networkx", resolution=resolution))
+        rows.append(dict(method="networkx", setting=f"N={resolution}", value=res.value,
+                         rel_error=abs(res.value - EXACT) / EXACT, seconds=dt))
+    try:
+        for order in (1, 2):
+            for n in (51, 101, 201, 401):
+                val, dt = timed(lambda: fmm_value(n, order), 2)
+                rows.append(dict(method=f"skfmm-{order}", setting=f"N={n}", value=val,
+                                 rel_error=abs(val - EXACT) / EXACT, seconds=dt))
+    except ImportError:
+        print("scikit-fmm is not installed (pip install scikit-fmm): fast marching left out")
+
+    rng = np.random.default_rng(1)
+    for n in (2, 4, 6, 8):
+        A, a0, b0 = rng.random((n, n)), rng.random(n), rng.random(n)
+        (v1, _), t1 = timed(lambda: solve(A, a0, b0), 5)
+        v2, t2 = timed(lambda: brute_force(A, a0, b0))
+        assert abs(v1 - v2) <= 1e-12
+        rows.append(dict(method="assignment (34)", setting=f"n+=n-={n}", value=v1, rel_error=0.0, seconds=t1))
+        rows.append(dict(method="enumeration (34)", setting=f"n+=n-={n}", value=v2, rel_error=0.0, seconds=t2))
+
+    for n in (10, 30, 100):
+        sc = zigzag(n)
+        res, dt = timed(lambda: direct.penalty(sc))
+        rows.append(dict(method="direct, zigzag", setting=f"crossings={len(res.crossings)}", value=res.value,
+                         rel_error=res.error_estimate / res.value, seconds=dt))
+
+    with open(os.path.join(HERE, "benchmark.csv"), "w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=["method", "setting", "value", "rel_error", "seconds"])
+        w.writeheader()
+        w.writerows(rows)
+    _chart(rows)
+    _summary(rows, cal)
+    return rows
+
+
+def _chart(rows):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6.5, 4.6))
+    styles = {"direct": "o-", "dijkstra-8": "s--", "dijkstra-16": "d--", "networkx": "v:", "skfmm-1": "^-.",
+              "skfmm-2": "<-."}
+    for method, style in styles.items():
+        pts = [(r["seconds"], max(r["rel_error"], 1e-16)) for r in rows if r["method"] == method]
+        if pts:
+            t, e = zip(*pts)
+            ax.loglog(t, e, style, label=method)
+    ax.set_xlabel("wall time per call (s)")
+    ax.set_ylabel("relative error of J^G (60-degree crossing)")
+    ax.set_title("error against time: lower left is better")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(os.path.join(HERE, "benchmark.png"), dpi=120)
+
+
+def _summary(rows, cal):
+    def pick(method, setting):
+        return next(r for r in rows if r["method"] == method and r["setting"] == setting)
+
+    lines = ["# Benchmark summary", "", "Generated by `python validation/benchmark.py`; times are wall times in one run.",
+             f"Calibration workload: {cal:.4f} s (compare runs through it).", ""]
+    lines += ["| method | setting | relative error | seconds | seconds / calibration |", "|---|---|---|---|---|"]
+    for r in rows[1:]:
+        err = f"{r['rel_error']:.1e}" if r["rel_error"] != "" else ""
+        lines.append(f"| {r['method']} | {r['setting']} | {err} | {r['seconds']:.4f} | {r['seconds'] / cal:.2f} |")
+    nx96, sc96 = pick("networkx", "N=96"), pick("dijkstra-16", "N=96")
+    lines += ["", f"- networkx pipeline / scipy pipeline at equal resolution (N=96, grid only): "
+              f"{nx96['seconds'] / sc96['seconds']:.1f} x slower."]
+    e8 = pick("enumeration (34)", "n+=n-=8")["seconds"] / pick("assignment (34)", "n+=n-=8")["seconds"]
+    lines += [f"- enumeration of (34) / assignment at 8 + 8 points: {e8:.0f} x slower."]
+    zz = [r for r in rows if r["method"] == "direct, zigzag"]
+    n = np.array([int(r["setting"].split("=")[1]) for r in zz])
+    t = np.array([r["seconds"] for r in zz])
+    slope = np.polyfit(np.log(n), np.log(t), 1)[0]
+    lines += [f"- pipeline time against the number of crossings (zigzag, 10 to 100): exponent {slope:.2f}."]
+    with open(os.path.join(HERE, "benchmark.md"), "w") as fh:
+        fh.write("\n".join(lines) + "\n")
+    print("\n".join(lines))
+
+
+if __name__ == "__main__":
+    main()
