@@ -503,6 +503,27 @@ def _initial_polyline(domain: Domain, route: np.ndarray, start: int, start_groun
     return X, modes
 
 
+def _prune_breaks(X: np.ndarray, modes: list) -> tuple[np.ndarray, list]:
+    """Drop refraction vertices whose neighbours are on the same side of their line.
+
+    Such a vertex only touches the line: the curve no longer crosses it there,
+    and holding a vertex on it would keep the curve in a sequence of cells it
+    has left.  :func:`_insert_breaks` adds back the crossings that remain.
+    """
+    keep = np.ones(len(X), dtype=bool)
+    for k in range(1, len(X) - 1):
+        mode = modes[k]
+        if isinstance(mode, str) or mode[1][0] * mode[1][1] != 0:
+            continue
+        axis = 0 if mode[1][0] == 0.0 else 1  # the coordinate that is constant on the line
+        c = X[k, axis]
+        if (X[k - 1, axis] - c) * (X[k + 1, axis] - c) >= 0:
+            keep[k] = False
+    if keep.all():
+        return X, modes
+    return X[keep], [m for m, kk in zip(modes, keep) if kk]
+
+
 def _insert_breaks(domain: Domain, X: np.ndarray, modes: list) -> tuple[np.ndarray, list]:
     """Add a sliding vertex where the polyline crosses a vertex parameter of either component.
 
@@ -651,7 +672,7 @@ def refine(
     atol: float = 0.0,
     start: int = 8,
     max_segments: int = 512,
-    max_rounds: int = 2,
+    max_rounds: int = 3,
 ) -> RefinedPath:
     """Refine a grid route into a geodesic: minimize its exact length, multilevel.
 
@@ -699,7 +720,7 @@ def refine(
         L_prev = length(X)
         for _round in range(max_rounds):
             X = _optimize_level(domain, metric, X, _normal_modes(X, modes, closed), shift, scale)
-            X, modes = _insert_breaks(domain, X, modes)
+            X, modes = _insert_breaks(domain, *_prune_breaks(X, modes))
             if end_ground is not None:
                 X, modes = _truncate_at_boundary(domain, end_ground, X, modes)
             L_new = length(X)
