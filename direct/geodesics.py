@@ -114,19 +114,29 @@ def grid_distances(graph: GridGraph, backend: Backend = "scipy") -> tuple[np.nda
         on = graph.rows == g
         nodes, w = graph.cols[on], graph.weights[on]
         cost = dist[a, nodes] + w
-        best = cost.min()
-        keep = cost <= (1 + margin) * best
-        nodes, cost = nodes[keep], cost[keep]
         ends = graph.exit_points[g, nodes]
-        # stretches of the boundary: exit points closer than a few grid steps belong together
-        order = np.argsort(cost)
-        picked: list[int] = []
-        gap = 3.0 * float(np.max(graph.h))
-        for k in order:
-            if all(np.abs(ends[k] - ends[j]).max() > gap for j in picked):
-                picked.append(k)
-            if len(picked) >= most:
-                break
+        # order the exits along the boundary, then keep the local minima of the cost: one per basin
+        dom = graph.domain
+        if dom.kind in ("cylinder", "annulus"):
+            key, periodic = ends[:, 0], True
+        else:  # the boundary of a rectangle or triangle is star-shaped about its centroid
+            centre = np.nanmean(ends, axis=0) if dom.kind == "torus" else np.array(dom.local_lengths) / 2
+            if dom.kind == "triangle":
+                centre = np.array([dom.local_lengths[0] / 3, 2 * dom.local_lengths[1] / 3])
+            key, periodic = np.arctan2(ends[:, 1] - centre[1], ends[:, 0] - centre[0]), True
+        order = np.argsort(key, kind="stable")
+        c = cost[order]
+        n = len(c)
+        is_min = np.ones(n, dtype=bool)
+        for shift in (1, 2, 3):
+            for sgn in (1, -1):
+                nb = np.roll(c, sgn * shift) if periodic else np.concatenate([c, np.full(shift, np.inf)])
+                if not periodic:
+                    nb = np.roll(nb, sgn * shift)[:n]
+                is_min &= c <= nb
+        best = cost.min()
+        picked = order[is_min & (c <= (1 + margin) * best)]
+        picked = picked[np.argsort(cost[picked])][:most]
         return [graph.node_path(node_route(a, int(nodes[k])) + [g]) for k in picked]
 
     route.candidates = candidates
@@ -475,6 +485,29 @@ def _truncate_at_boundary(domain: Domain, ground: int, X: np.ndarray, modes: lis
     return X, modes
 
 
+def _coarse_geodesic(domain, metric, route, start_ground, end_ground, shift, scale, closed, n: int = 16, rounds: int = 3):
+    """Straighten a grid route at a coarse scale first: ``n`` segments, each across many cells.
+
+    At that scale the kinks of the length (where segments cross vertex
+    lines) are small ripples, so the large-scale shape of the geodesic
+    settles quickly; the fine levels then only adjust it locally.
+    """
+    X = _resample(route, n)
+    modes: list = ["free"] * (n + 1)
+    if not closed:
+        for k, ground in ((0, start_ground), (n, end_ground)):
+            if ground is None:
+                modes[k] = "fixed"
+            else:
+                base, e, (lo, hi) = _side(domain, ground, X[k])
+                modes[k] = (base, e, lo, hi)
+    for _ in range(rounds):
+        X = _optimize_level(domain, metric, X, _normal_modes(X, modes, closed), shift, scale)
+        if end_ground is not None:
+            X, modes = _truncate_at_boundary(domain, end_ground, X, modes)
+    return X
+
+
 def _initial_polyline(domain: Domain, route: np.ndarray, start: int, start_ground, end_ground, closed: bool):
     """First polyline of the refinement: the route's ends and its crossings with the cell lines.
 
@@ -491,7 +524,8 @@ def _initial_polyline(domain: Domain, route: np.ndarray, start: int, start_groun
             else:
                 base, e, (lo, hi) = _side(domain, ground, X[k])
                 modes[k] = (base, e, lo, hi)
-    Y, ymodes = _insert_breaks(domain, route, ["free"] * len(route))
+    smooth = _resample(route, 4 * start)  # the grid route zigzags at the scale of the grid: smooth it first
+    Y, ymodes = _insert_breaks(domain, smooth, ["free"] * len(smooth))
     lines = [k for k, m in enumerate(ymodes) if not isinstance(m, str)]
     if len(lines) + 1 < start:
         return _insert_breaks(domain, X, modes)
@@ -708,6 +742,7 @@ def refine(
     scale = float(max(domain.lengths))
     route = np.asarray(route, dtype=float)
     shift = route[-1] - route[0] if closed else None
+    route = _coarse_geodesic(domain, metric, route, start_ground, end_ground, shift, scale, closed)
     X, modes = _initial_polyline(domain, route, start, start_ground, end_ground, closed)
     history = []
     n = start
