@@ -265,7 +265,7 @@ class RefinedPath:
     upper : float
         Exact length of ``points`` (a real curve: an upper bound of the distance).
     error_estimate : float
-        ``|L_n - L_{n/2}| / 3``, the Richardson correction applied.
+        ``|L_n - L_{n/2}|``: three times the Richardson correction applied.
     segments : int
         Number of segments of the final level.
     """
@@ -765,9 +765,12 @@ def refine(
         Ln = length(X)
         history.append(Ln)
         if len(history) >= 2:
-            corr = (history[-2] - history[-1]) / 3.0
-            if abs(corr) <= max(tol * abs(history[-1]), atol) or n >= max_segments:
-                return RefinedPath(X, history[-1] - corr, Ln, abs(corr), len(X) - 1)
+            # Richardson: with an error ~ n^-2, L_n - L_inf ~ (L_{n/2} - L_n) / 3.  The estimate is the whole
+            # last difference, three times that correction: the first levels are not always asymptotic.
+            diff = history[-2] - history[-1]
+            estimate = abs(diff)
+            if estimate <= max(tol * abs(history[-1]), atol) or n >= max_segments:
+                return RefinedPath(X, history[-1] - diff / 3.0, Ln, estimate, len(X) - 1)
         elif Ln == 0.0:
             return RefinedPath(X, 0.0, 0.0, 0.0, len(X) - 1)
         # double: a free midpoint in every segment
