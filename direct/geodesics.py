@@ -485,7 +485,9 @@ def _truncate_at_boundary(domain: Domain, ground: int, X: np.ndarray, modes: lis
     return X, modes
 
 
-def _coarse_geodesic(domain, metric, route, start_ground, end_ground, shift, scale, closed, n: int = 16, rounds: int = 3):
+def _coarse_geodesic(
+    domain, metric, route, start_ground, end_ground, shift, scale, closed, n: int = 16, rounds: int = 3
+) -> np.ndarray:
     """Straighten a grid route at a coarse scale first: ``n`` segments, each across many cells.
 
     At that scale the kinks of the length (where segments cross vertex

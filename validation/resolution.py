@@ -41,8 +41,8 @@ def main():
         for r, res in vals.items():
             rows.append(dict(scene=name, resolution=r, value=res.value, error_estimate=res.error_estimate,
                              seconds=res.seconds))
-        print(f"{name:24s} " + "  ".join(f"{vals[r].value:.7f}" for r in (48, 96, 192)) + f"  spread 96/192 {spread:.1e}",
-              flush=True)
+        values = "  ".join(f"{vals[r].value:.7f}" for r in (48, 96, 192))
+        print(f"{name:24s} {values}  spread 96/192 {spread:.1e}", flush=True)
     with open(os.path.join(HERE, "resolution.csv"), "w", newline="") as fh:
         w = csv.DictWriter(fh, fieldnames=list(rows[0]))
         w.writeheader()
