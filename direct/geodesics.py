@@ -485,15 +485,8 @@ def _truncate_at_boundary(domain: Domain, ground: int, X: np.ndarray, modes: lis
     return X, modes
 
 
-def _coarse_geodesic(
-    domain, metric, route, start_ground, end_ground, shift, scale, closed, n: int = 16, rounds: int = 3
-) -> np.ndarray:
-    """Straighten a grid route at a coarse scale first: ``n`` segments, each across many cells.
-
-    At that scale the kinks of the length (where segments cross vertex
-    lines) are small ripples, so the large-scale shape of the geodesic
-    settles quickly; the fine levels then only adjust it locally.
-    """
+def _resampled_with_ends(domain: Domain, route: np.ndarray, n: int, start_ground, end_ground, closed: bool):
+    """``n`` segments evenly along the route; ends fixed (crossing points) or sliding on their boundary."""
     X = _resample(route, n)
     modes: list = ["free"] * (n + 1)
     if not closed:
@@ -503,6 +496,19 @@ def _coarse_geodesic(
             else:
                 base, e, (lo, hi) = _side(domain, ground, X[k])
                 modes[k] = (base, e, lo, hi)
+    return X, modes
+
+
+def _coarse_geodesic(
+    domain, metric, route, start_ground, end_ground, shift, scale, closed, n: int = 16, rounds: int = 3
+) -> np.ndarray:
+    """Straighten a grid route at a coarse scale first: ``n`` segments, each across many cells.
+
+    At that scale the kinks of the length (where segments cross vertex
+    lines) are small ripples, so the large-scale shape of the geodesic
+    settles quickly; the fine levels then only adjust it locally.
+    """
+    X, modes = _resampled_with_ends(domain, route, n, start_ground, end_ground, closed)
     for _ in range(rounds):
         X = _optimize_level(domain, metric, X, _normal_modes(X, modes, closed), shift, scale)
         if end_ground is not None:
@@ -517,15 +523,7 @@ def _initial_polyline(domain: Domain, route: np.ndarray, start: int, start_groun
     of its ends.  Where the route crosses fewer than ``start`` lines, its
     evenly resampled points fill in (free vertices).
     """
-    X = _resample(route, start)
-    modes: list = ["free"] * (start + 1)
-    if not closed:
-        for k, ground in ((0, start_ground), (start, end_ground)):
-            if ground is None:
-                modes[k] = "fixed"
-            else:
-                base, e, (lo, hi) = _side(domain, ground, X[k])
-                modes[k] = (base, e, lo, hi)
+    X, modes = _resampled_with_ends(domain, route, start, start_ground, end_ground, closed)
     smooth = _resample(route, 4 * start)  # the grid route zigzags at the scale of the grid: smooth it first
     Y, ymodes = _insert_breaks(domain, smooth, ["free"] * len(smooth))
     lines = [k for k, m in enumerate(ymodes) if not isinstance(m, str)]
