@@ -50,7 +50,7 @@ def _add_method_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--power", type=float, default=None, metavar="P", help="q of G or p of g (default 2)")
     p.add_argument("--tol", type=float, default=1e-3, help="relative tolerance of each refined geodesic (default 1e-3)")
     p.add_argument(
-        "--resolution", type=int, default=96, metavar="N", help="grid cells along the longer side of a domain (96)"
+        "--resolution", type=int, default=128, metavar="N", help="grid cells along the longer side of a domain (128)"
     )
     p.add_argument("--neighbours", type=int, choices=[8, 16, 32], default=16, help="grid stencil (default 16)")
     p.add_argument("--backend", choices=["scipy", "networkx"], default="scipy", help="shortest-path backend")

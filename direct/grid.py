@@ -326,7 +326,7 @@ def _dedupe_min(r, c, w, k):
 
 
 def build_graph(
-    domain: Domain, metric: Metric, resolution: int = 96, neighbours: int = 16, window: int = 2
+    domain: Domain, metric: Metric, resolution: int = 128, neighbours: int = 16, window: int = 2
 ) -> GridGraph:
     """Build the grid graph of a domain.
 
@@ -336,7 +336,7 @@ def build_graph(
         The pair domain with its crossing points.
     metric : Metric
         Gives the exact edge weights.
-    resolution : int, default 96
+    resolution : int, default 128
         Number of grid cells along the longer side of the domain.
     neighbours : {8, 16, 32}, default 16
         Stencil of the grid moves.

@@ -468,7 +468,7 @@ def penalty(
     *,
     power: float | None = None,
     tol: float = 1e-3,
-    resolution: int = 96,
+    resolution: int = 128,
     neighbours: int = 16,
     backend: Backend = "scipy",
     refine: bool = True,
@@ -488,7 +488,7 @@ def penalty(
         ``q`` of ``G = |y1 - y2|^(2q) Id`` or ``p`` of ``g(s) = s^p`` (both default 2).
     tol : float, default 1e-3
         Relative tolerance of each refined geodesic length.
-    resolution : int, default 96
+    resolution : int, default 128
         Grid cells along the longer side of each pair domain.
     neighbours : {8, 16, 32}, default 16
         Grid stencil.
