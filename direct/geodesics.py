@@ -38,7 +38,9 @@ from scipy.sparse.linalg import spsolve
 from .grid import Domain, GridGraph
 from .metric import Metric, _breaks, _vertex_params, segment_lengths
 
-__all__ = ["grid_distances", "torus_distances", "closed_curve_distances", "refine", "RefinedPath", "Backend"]
+__all__ = [
+    "grid_distances", "torus_distances", "closed_curve_distances", "refine", "coarse_length", "RefinedPath", "Backend"
+]
 
 Backend = Literal["scipy", "networkx"]
 
@@ -497,6 +499,16 @@ def _resampled_with_ends(domain: Domain, route: np.ndarray, n: int, start_ground
                 base, e, (lo, hi) = _side(domain, ground, X[k])
                 modes[k] = (base, e, lo, hi)
     return X, modes
+
+
+def coarse_length(domain: Domain, metric: Metric, route: np.ndarray, end_ground: int | None = None) -> float:
+    """Length of the coarse geodesic near a route (the first stage of :func:`refine`).
+
+    Cheap, and enough to rank routes that lead to different local geodesics.
+    """
+    scale = float(max(domain.lengths))
+    X = _coarse_geodesic(domain, metric, np.asarray(route, dtype=float), None, end_ground, None, scale, False)
+    return float(segment_lengths(metric, domain.comps, X[:-1], X[1:]).sum())
 
 
 def _coarse_geodesic(

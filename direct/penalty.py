@@ -77,7 +77,15 @@ import numpy as np
 
 from .crossings import Crossing, find_crossings
 from .errors import DirectError
-from .geodesics import Backend, RefinedPath, closed_curve_distances, grid_distances, refine, torus_distances
+from .geodesics import (
+    Backend,
+    RefinedPath,
+    closed_curve_distances,
+    coarse_length,
+    grid_distances,
+    refine,
+    torus_distances,
+)
 from .grid import Domain, build_graph
 from .matching import solve as solve_assignment
 from .matching import solve_flow, solve_torus
@@ -427,8 +435,12 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
                               end_ground=v if v < ng else None, tol=tol, atol=atol)
             # point to boundary: every stretch of the boundary that the grid cannot rule out
             a, g, flip = (u, v, False) if v < ng else (v, u, True)
+            polys = route.candidates(a, g, 2 * (bias - 1))
+            if len(polys) > 1:  # rank the candidates by their coarse geodesics; refine the close ones only
+                coarse = np.array([coarse_length(domain, metric, poly, end_ground=g) for poly in polys])
+                polys = [p for p, c in zip(polys, coarse) if c <= 1.02 * coarse.min()]
             best = None
-            for poly in route.candidates(a, g, 2 * (bias - 1)):
+            for poly in polys:
                 rp = refine(domain, metric, poly, end_ground=g, tol=tol, atol=atol)
                 if best is None or rp.length < best.length:
                     best = rp
