@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pytest
+from conftest import insert_vertex
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
@@ -80,14 +81,6 @@ def random_grid_scene(seed: int, closed: bool | None = None, grid: int = 3) -> S
             n = int(rng.integers(2, 6))
             comps.append(open_comp(rng.integers(0, grid, size=(n, 2)), k, f"K{k}"))
     return Scene(tuple(comps))
-
-
-def insert_at(comp: Component, seg: int, t: float) -> Component:
-    """The same component with a material point added at fraction t of segment seg (t = 1/2 is exact)."""
-    ref, dfm = comp.reference_ring, comp.deformed_ring
-    r = np.insert(comp.reference, seg + 1, ref[seg] + t * (ref[seg + 1] - ref[seg]), axis=0)
-    d = np.insert(comp.deformed, seg + 1, dfm[seg] + t * (dfm[seg + 1] - dfm[seg]), axis=0)
-    return Component(r, d, comp.closed, comp.name)
 
 
 def replace(sc: Scene, k: int, comp: Component) -> Scene:
@@ -411,7 +404,7 @@ def test_insert_vertex_generic(seed, data):
     comp = sc.components[k]
     seg = data.draw(st.integers(0, comp.n_segments - 1))
     t = data.draw(st.floats(0.01, 0.99))
-    assert_same(find_crossings(replace(sc, k, insert_at(comp, seg, t))), base)
+    assert_same(find_crossings(replace(sc, k, insert_vertex(comp, seg, t))), base)
 
 
 @FAST
@@ -425,7 +418,7 @@ def test_insert_vertex_at_a_crossing(seed, data):
     k, seg = c.components[side], c.segments[side]
     comp = sc.components[k]
     t = (c.params[side] - comp.params[seg]) / comp.segment_lengths[seg]
-    assert_same(find_crossings(replace(sc, k, insert_at(comp, seg, t))), base, tol=1e-9)
+    assert_same(find_crossings(replace(sc, k, insert_vertex(comp, seg, t))), base, tol=1e-9)
 
 
 @settings(max_examples=150, deadline=None)
@@ -437,12 +430,12 @@ def test_insert_vertex_degenerate_exact(seed, data):
     k = data.draw(st.integers(0, len(sc.components) - 1))
     comp = sc.components[k]
     seg = data.draw(st.integers(0, comp.n_segments - 1))
-    once = replace(sc, k, insert_at(comp, seg, 0.5))
+    once = replace(sc, k, insert_vertex(comp, seg, 0.5))
     assert_same(find_crossings(once), base)
     # and a vertex at a quarter of another segment
     k2 = data.draw(st.integers(0, len(sc.components) - 1))
     seg2 = data.draw(st.integers(0, once.components[k2].n_segments - 1))
-    twice = replace(once, k2, insert_at(once.components[k2], seg2, 0.25))
+    twice = replace(once, k2, insert_vertex(once.components[k2], seg2, 0.25))
     assert_same(find_crossings(twice), base)
 
 
