@@ -13,15 +13,21 @@ geodesic distances):
    ``shared/NUMERICS.md``).  On a torus, :func:`torus_distances` works on a
    3 x 3 block of the universal cover, so that each distance comes with the
    homotopy class of its route (how many times it goes around each circle).
-2. **Continuous refinement** (:func:`refine`): each route is resampled as a
-   polyline with ``n`` segments whose free vertices (interior ones, ends that
-   slide on the boundary, or all of them for a closed curve) minimize the
-   exact metric length by a damped Newton method.  The Hessian of the length
-   is sparse (a vertex moves only its two segments) and is assembled from
-   finite-difference Hessians of single segments, whose lengths are exact.
-   ``n`` doubles until the Richardson extrapolation (error ``~ n^-2``)
-   changes the length by less than the tolerance; the correction is the
-   error estimate.
+2. **Continuous refinement** (:func:`refine`): each route becomes a polyline
+   whose exact metric length is minimized.  A coarse pass first (16 segments,
+   each across many cells, where the kinks of the length are small ripples)
+   settles the large-scale shape; then the polyline gets a vertex wherever it
+   crosses a vertex parameter of either component (the metric's norm jumps
+   there and the geodesic refracts), sliding along that line, so that every
+   segment lies in one cell where its length is smooth.  Free vertices move
+   across the curve only (along the polyline's normals: moves along it barely
+   change the length and make the problem singular), ends slide on their
+   boundary.  A damped Newton method uses the exact gradient
+   (:func:`direct.metric.segment_lengths`) and a sparse Hessian from central
+   differences of it; an L-BFGS-B pass takes over where Newton stalls on a
+   kink.  The number of segments doubles until the length changes by less
+   than the tolerance; the value is Richardson-extrapolated (error ``~ n^-2``)
+   and the error estimate is the whole last change.
 """
 
 from __future__ import annotations
@@ -39,7 +45,7 @@ from .grid import Domain, GridGraph
 from .metric import Metric, _breaks, _vertex_params, segment_lengths
 
 __all__ = [
-    "grid_distances", "torus_distances", "closed_curve_distances", "refine", "coarse_length", "RefinedPath", "Backend"
+    "grid_distances", "torus_distances", "closed_curve_distances", "refine", "coarse_geodesic", "RefinedPath", "Backend"
 ]
 
 Backend = Literal["scipy", "networkx"]
@@ -402,6 +408,9 @@ class _Parametrization:
                 vals.append(val)
         self.nv = nz
         self.M = sp.csr_matrix((vals, (rows, cols)), shape=(2 * (n + 1), max(nz, 1)))
+        self._diag = np.asarray(self.M.multiply(self.M).sum(axis=0)).ravel()
+        arr = np.array(self.slides, dtype=float).reshape(-1, 3)
+        self._slide_idx, self._lo, self._hi = arr[:, 0].astype(int), arr[:, 1], arr[:, 2]
 
     def pack(self, X: np.ndarray) -> np.ndarray:
         """Least-squares unknowns of vertices ``X`` (exact when ``X`` is of the form ``X0 + M z``).
@@ -410,15 +419,11 @@ class _Parametrization:
         """
         if self.nv == 0:
             return np.zeros(0)
-        diag = np.asarray(self.M.multiply(self.M).sum(axis=0)).ravel()
-        return self.clip((self.M.T @ (X - self.X0).ravel()) / diag)
+        return self.clip((self.M.T @ (X - self.X0).ravel()) / self._diag)
 
     def clip(self, z):
-        if self.slides:
-            if not hasattr(self, "_slide_idx"):
-                arr = np.array(self.slides, dtype=float).reshape(-1, 3)
-                self._slide_idx, self._lo, self._hi = arr[:, 0].astype(int), arr[:, 1], arr[:, 2]
-            z[self._slide_idx] = np.clip(z[self._slide_idx], self._lo, self._hi)
+        """Keep sliding vertices within their stretch of line."""
+        z[self._slide_idx] = np.clip(z[self._slide_idx], self._lo, self._hi)
         return z
 
     def unpack(self, z: np.ndarray) -> np.ndarray:
@@ -501,14 +506,18 @@ def _resampled_with_ends(domain: Domain, route: np.ndarray, n: int, start_ground
     return X, modes
 
 
-def coarse_length(domain: Domain, metric: Metric, route: np.ndarray, end_ground: int | None = None) -> float:
-    """Length of the coarse geodesic near a route (the first stage of :func:`refine`).
+def coarse_geodesic(
+    domain: Domain, metric: Metric, route: np.ndarray, end_ground: int | None = None
+) -> tuple[np.ndarray, float]:
+    """The coarse geodesic near a route (the first stage of :func:`refine`) and its exact length.
 
-    Cheap, and enough to rank routes that lead to different local geodesics.
+    Cheap, and enough to rank routes that lead to different local geodesics;
+    the polyline is a good start for :func:`refine`, whose first stage then
+    has nothing left to do.
     """
     scale = float(max(domain.lengths))
     X = _coarse_geodesic(domain, metric, np.asarray(route, dtype=float), None, end_ground, None, scale, False)
-    return float(segment_lengths(metric, domain.comps, X[:-1], X[1:]).sum())
+    return X, float(segment_lengths(metric, domain.comps, X[:-1], X[1:]).sum())
 
 
 def _coarse_geodesic(
@@ -650,7 +659,7 @@ def _newton(par, unpack, length, assemble, z, scale, max_iter):
 
 
 def _optimize_level(domain: Domain, metric: Metric, X0: np.ndarray, modes: list, shift, scale: float,
-                    max_iter: int = 20, ftol: float = 1e-12) -> np.ndarray:
+                    max_iter: int = 20) -> np.ndarray:
     """Minimize the exact length of a polyline over its free coordinates.
 
     Damped Newton (Levenberg-Marquardt) with a backtracking line search; where
@@ -697,13 +706,12 @@ def _optimize_level(domain: Domain, metric: Metric, X0: np.ndarray, modes: list,
         gX = np.bincount(loc.ravel(), weights=gl.ravel(), minlength=2 * (n + 1))
         return float(fl.sum()) / f0, (Mt @ gX) / f0
 
-    bounds = [(None, None)] * par.nv
     wide = 10.0 * scale
     bounds = [(float(zk) - wide, float(zk) + wide) for zk in z]
     for kk, lo, hi in par.slides:
         bounds[kk] = (max(lo, bounds[kk][0]), min(hi, bounds[kk][1]))
     res = minimize(fun, z, jac=True, method="L-BFGS-B", bounds=bounds,
-                   options={"maxiter": 100, "ftol": ftol, "gtol": 1e-14, "maxcor": 30})
+                   options={"maxiter": 100, "ftol": 1e-12, "gtol": 1e-14, "maxcor": 30})
     return unpack(par.clip(res.x))
 
 

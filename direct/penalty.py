@@ -81,7 +81,7 @@ from .geodesics import (
     Backend,
     RefinedPath,
     closed_curve_distances,
-    coarse_length,
+    coarse_geodesic,
     grid_distances,
     refine,
     torus_distances,
@@ -321,19 +321,15 @@ def boundary_conditions(domain: Domain) -> dict[str, Any]:
     return {"winds": (int(k1), int(k2))}
 
 
-def _settle(grid_costs: dict, solve, refine_key, bias: float | None):
+def _settle(grid_costs: dict, solve, refine_key, bias: float):
     """Solve, refine the chosen curves, re-solve with refined lengths until the choice is refined.
 
     Entries not refined yet enter as optimistic lower estimates (grid length /
     ``bias``, or divided by the largest overestimate the grid showed on the
     entries refined so far, with a margin, when that is larger: coarse grids
     overestimate more than the stencil's bias), so a choice made of refined
-    entries cannot be beaten by an unrefined one.  ``bias=None``: no
-    refinement, grid lengths.
+    entries cannot be beaten by an unrefined one.
     """
-    if bias is None:
-        value, chosen = solve(grid_costs)
-        return value, chosen, {}
     cache: dict = {}
     for _ in range(len(grid_costs) + 1):
         # the grid's overestimate seen on the refined entries, with a margin, bounds the others' below
@@ -360,7 +356,7 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
     pos = np.flatnonzero(domain.signs > 0)
     neg = np.flatnonzero(domain.signs < 0)
     tol = settings["tol"]
-    bias = 1.0 + _STENCIL_BIAS.get(settings["neighbours"], 0.1) + 0.05 if do_refine else None
+    bias = 1.0 + _STENCIL_BIAS.get(settings["neighbours"], 0.1) + 0.05
     cond = boundary_conditions(domain)
 
     if domain.kind == "torus":
@@ -437,8 +433,9 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
             a, g, flip = (u, v, False) if v < ng else (v, u, True)
             polys = route.candidates(a, g, 2 * (bias - 1))
             if len(polys) > 1:  # rank the candidates by their coarse geodesics; refine the close ones only
-                coarse = np.array([coarse_length(domain, metric, poly, end_ground=g) for poly in polys])
-                polys = [p for p, c in zip(polys, coarse) if c <= 1.02 * coarse.min()]
+                coarse = [coarse_geodesic(domain, metric, poly, end_ground=g) for poly in polys]
+                shortest = min(length for _, length in coarse)
+                polys = [poly for poly, length in coarse if length <= 1.02 * shortest]
             best = None
             for poly in polys:
                 rp = refine(domain, metric, poly, end_ground=g, tol=tol, atol=atol)
@@ -456,9 +453,12 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
             u, v = key
             return (("ground", u) if u < ng else u - ng), (("ground", v) if v < ng else v - ng)
 
-    grid_value, _ = solve(grid_costs)
+    grid_value, grid_chosen = solve(grid_costs)
     atol = 0.1 * tol * grid_value / max(1, len(domain.points))
-    value, chosen, cache = _settle(grid_costs, solve, refine_key, bias)
+    if do_refine:
+        value, chosen, cache = _settle(grid_costs, solve, refine_key, bias)
+    else:
+        value, chosen, cache = grid_value, grid_chosen, {}
     curves = []
     err = 0.0
     for key, count in chosen:
