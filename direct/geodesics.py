@@ -33,10 +33,12 @@ geodesic distances):
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Literal
 
 import numpy as np
 import scipy.sparse as sp
+from scipy.linalg import LinAlgError, solve_banded
 from scipy.optimize import minimize
 from scipy.sparse.csgraph import dijkstra
 from scipy.sparse.linalg import spsolve
@@ -86,7 +88,25 @@ def _shortest(matrix: sp.csr_matrix, sources: np.ndarray, backend: Backend):
     raise ValueError(f"backend must be 'scipy' or 'networkx', got {backend!r}")
 
 
-def grid_distances(graph: GridGraph, backend: Backend = "scipy") -> tuple[np.ndarray, callable]:
+def _bounded_shortest(matrix: sp.csr_matrix, sources: np.ndarray, bound: float):
+    """:func:`_shortest` from one ground (``sources[0]``) and points, each point's search bounded (see ``bound``)."""
+    d0, p0 = dijkstra(matrix, directed=True, indices=sources[:1], return_predecessors=True)
+    d_ground = d0[0, sources[1:]]
+    reach = np.isfinite(d_ground)
+    far = float(d_ground[reach].max()) if reach.any() else np.inf
+    dist = np.full((len(sources), matrix.shape[0]), np.inf)
+    pred = np.full(dist.shape, -9999, dtype=np.int32)
+    dist[0], pred[0] = d0[0], p0[0]
+    for a in range(1, len(sources)):
+        limit = bound * (d_ground[a - 1] + far) if reach[a - 1] else np.inf
+        dist[a], pred[a] = dijkstra(matrix, directed=True, indices=int(sources[a]), return_predecessors=True,
+                                    limit=limit)
+    return dist, _paths_from_predecessors(pred, sources)
+
+
+def grid_distances(
+    graph: GridGraph, backend: Backend = "scipy", bound: float | None = None
+) -> tuple[np.ndarray, callable]:
     """Grid distances between the terminals of a domain: its boundary parts, then its crossing points.
 
     Parameters
@@ -96,6 +116,14 @@ def grid_distances(graph: GridGraph, backend: Backend = "scipy") -> tuple[np.nda
     backend : {"scipy", "networkx"}
         ``scipy.sparse.csgraph.dijkstra`` (default), or networkx's Dijkstra
         as an independent implementation.
+    bound : float, optional
+        Bounded searches (scipy, domains with one boundary part: the pieces
+        ``I_i x I_j`` of program (34)).  One search from the boundary first
+        gives every point's distance ``d_a`` to it; the search from point ``a``
+        then stops at ``bound * (d_a + max_b d_b)``.  A curve between two
+        points is only worth it when shorter than sending both to the boundary,
+        so with ``bound`` at least the grid's overestimate factor no entry that
+        program (34) could use is lost.  Entries beyond the limit are ``inf``.
 
     Returns
     -------
@@ -113,7 +141,10 @@ def grid_distances(graph: GridGraph, backend: Backend = "scipy") -> tuple[np.nda
         lengths differ by less than the grid's bias.
     """
     src, dst = graph.sources, graph.targets
-    dist, node_route = _shortest(graph.matrix, src, backend)
+    if bound is not None and backend == "scipy" and graph.n_grounds == 1 and len(src) > 1:
+        dist, node_route = _bounded_shortest(graph.matrix, src, bound)
+    else:
+        dist, node_route = _shortest(graph.matrix, src, backend)
 
     def route(a: int, b: int) -> np.ndarray:
         return graph.node_path(node_route(a, dst[b]))
@@ -407,10 +438,27 @@ class _Parametrization:
                 cols.append(col)
                 vals.append(val)
         self.nv = nz
-        self.M = sp.csr_matrix((vals, (rows, cols)), shape=(2 * (n + 1), max(nz, 1)))
-        self._diag = np.asarray(self.M.multiply(self.M).sum(axis=0)).ravel()
+        self._triplets = (rows, cols, vals)
+        # one unknown per vertex at most, in vertex order, open curve: the Hessian in z is tridiagonal
+        r, c, v = np.asarray(rows, dtype=int), np.asarray(cols, dtype=int), np.asarray(vals, dtype=float)
+        vert = r // 2
+        self.banded = bool(shift is None and nz > 0 and len(r) == 2 * nz and np.all(vert[0::2] == vert[1::2])
+                           and np.all(np.diff(vert[0::2]) > 0) and np.all(c[0::2] == np.arange(nz))
+                           and np.all(c[1::2] == c[0::2]))
+        if self.banded:
+            self.vertex = vert[0::2]  # vertex of each unknown
+            self.E = np.column_stack([v[0::2], v[1::2]])  # its direction (rows 2k, 2k + 1 come in pairs)
+            self._diag = (self.E * self.E).sum(axis=1)
+        else:
+            self._diag = np.asarray(self.M.multiply(self.M).sum(axis=0)).ravel()
         arr = np.array(self.slides, dtype=float).reshape(-1, 3)
         self._slide_idx, self._lo, self._hi = arr[:, 0].astype(int), arr[:, 1], arr[:, 2]
+
+    @cached_property
+    def M(self) -> sp.csr_matrix:
+        """The matrix of ``X = X0 + M z`` (vertices flattened as ``x1, x2`` pairs)."""
+        rows, cols, vals = self._triplets
+        return sp.csr_matrix((vals, (rows, cols)), shape=(2 * (self.n + 1), max(self.nv, 1)))
 
     def pack(self, X: np.ndarray) -> np.ndarray:
         """Least-squares unknowns of vertices ``X`` (exact when ``X`` is of the form ``X0 + M z``).
@@ -419,6 +467,8 @@ class _Parametrization:
         """
         if self.nv == 0:
             return np.zeros(0)
+        if self.banded:
+            return self.clip(((X - self.X0)[self.vertex] * self.E).sum(axis=1) / self._diag)
         return self.clip((self.M.T @ (X - self.X0).ravel()) / self._diag)
 
     def clip(self, z):
@@ -427,6 +477,10 @@ class _Parametrization:
         return z
 
     def unpack(self, z: np.ndarray) -> np.ndarray:
+        if self.banded:
+            X = self.X0.copy()
+            X[self.vertex] += z[:, None] * self.E
+            return X
         return self.X0 + (self.M @ z).reshape(-1, 2)
 
 
@@ -622,14 +676,28 @@ def _insert_breaks(domain: Domain, X: np.ndarray, modes: list) -> tuple[np.ndarr
 
 
 def _newton(par, unpack, length, assemble, z, scale, max_iter):
-    """Damped Newton (Levenberg-Marquardt) with backtracking: ``(X, converged)``."""
+    """Damped Newton (Levenberg-Marquardt) with backtracking: ``(X, converged)``.
+
+    ``assemble(X)`` returns the length, its gradient and its Hessian in the
+    unknowns: a sparse matrix, or ``(diag, off)`` for a tridiagonal one.
+    """
     X = unpack(z)
     f, grad, H = assemble(X)
     lam = 1e-8
-    eye = sp.identity(par.nv, format="csc")
+    eye = None if isinstance(H, tuple) else sp.identity(par.nv, format="csc")
     for _ in range(max_iter):
-        hscale = max(float(np.abs(H.diagonal()).max()), 1e-300)
-        dz = spsolve(H + lam * hscale * eye, -grad)
+        if isinstance(H, tuple):
+            diag, off = H
+            hscale = max(float(np.abs(diag).max()), 1e-300)
+            ab = np.zeros((3, len(diag)))
+            ab[0, 1:], ab[1], ab[2, :-1] = off, diag + lam * hscale, off
+            try:
+                dz = solve_banded((1, 1), ab, -grad, check_finite=False)
+            except (LinAlgError, ValueError):
+                dz = np.full_like(grad, np.nan)
+        else:
+            hscale = max(float(np.abs(H.diagonal()).max()), 1e-300)
+            dz = spsolve(H + lam * hscale * eye, -grad)
         decrease = -float(dz @ grad)
         if not np.all(np.isfinite(dz)) or decrease <= 0:
             lam = max(lam * 100, 1e-6)
@@ -675,7 +743,6 @@ def _optimize_level(domain: Domain, metric: Metric, X0: np.ndarray, modes: list,
     # global coordinate indices of the local coordinates (P1, P2, Q1, Q2) of each segment
     k = np.arange(n)
     loc = np.column_stack([2 * k, 2 * k + 1, 2 * k + 2, 2 * k + 3])
-    M, Mt = par.M, par.M.T.tocsr()
 
     def unpack(z):
         return _project(domain, par.unpack(z))
@@ -685,10 +752,25 @@ def _optimize_level(domain: Domain, metric: Metric, X0: np.ndarray, modes: list,
 
     def assemble(X):
         f, gl, Hl = _segment_derivatives(metric, comps, X[:-1], X[1:], step)
+        if par.banded:  # tridiagonal in the unknowns: project the 4 x 4 blocks on each vertex's direction
+            gV = np.zeros((n + 1, 2))
+            gV[:-1] += gl[:, :2]
+            gV[1:] += gl[:, 2:]
+            dV = np.zeros(n + 1)
+            E = np.zeros((n + 1, 2))
+            E[par.vertex] = par.E
+            dV[:-1] += np.einsum("ki,kij,kj->k", E[:-1], Hl[:, :2, :2], E[:-1])
+            dV[1:] += np.einsum("ki,kij,kj->k", E[1:], Hl[:, 2:, 2:], E[1:])
+            oV = np.einsum("ki,kij,kj->k", E[:-1], Hl[:, :2, 2:], E[1:])  # vertex k with vertex k + 1
+            vt = par.vertex
+            adjacent = np.diff(vt) == 1
+            off = np.where(adjacent, oV[np.minimum(vt[:-1], n - 1)], 0.0)
+            return float(f.sum()), (gV[vt] * par.E).sum(axis=1), (dV[vt], off)
         gX = np.bincount(loc.ravel(), weights=gl.ravel(), minlength=2 * (n + 1))
         r = np.repeat(loc, 4, axis=1).ravel()
         c = np.tile(loc, (1, 4)).ravel()
         HX = sp.csr_matrix((Hl.ravel(), (r, c)), shape=(2 * (n + 1), 2 * (n + 1)))
+        M, Mt = par.M, par.M.T.tocsr()
         return float(f.sum()), Mt @ gX, (Mt @ HX @ M).tocsc()
 
     z = par.pack(X0)
@@ -704,7 +786,7 @@ def _optimize_level(domain: Domain, metric: Metric, X0: np.ndarray, modes: list,
         XX = unpack(par.clip(zz.copy()))
         fl, gl, _ = _segment_derivatives(metric, comps, XX[:-1], XX[1:], step, hessian=False)
         gX = np.bincount(loc.ravel(), weights=gl.ravel(), minlength=2 * (n + 1))
-        return float(fl.sum()) / f0, (Mt @ gX) / f0
+        return float(fl.sum()) / f0, (par.M.T @ gX) / f0
 
     wide = 10.0 * scale
     bounds = [(float(zk) - wide, float(zk) + wide) for zk in z]

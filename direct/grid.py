@@ -79,6 +79,16 @@ def stencil(neighbours: int) -> np.ndarray:
     return np.array(moves)
 
 
+def _apply(B: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """``x @ B.T`` for a 2 x 2 change of coordinates, without a BLAS call (slow for tiny inner sizes)."""
+    if B[0, 1] == 0.0 and B[1, 0] == 0.0 and B[0, 0] == 1.0 and B[1, 1] == 1.0:
+        return x.copy()
+    out = np.empty_like(x)
+    out[:, 0] = B[0, 0] * x[:, 0] + B[0, 1] * x[:, 1]
+    out[:, 1] = B[1, 0] * x[:, 0] + B[1, 1] * x[:, 1]
+    return out
+
+
 @dataclass(frozen=True, eq=False)
 class Domain:
     r"""One piece of ``M x M \ Delta`` with its crossing points (see the module docstring).
@@ -137,6 +147,10 @@ class Domain:
             return np.array([[0.0, 1.0], [1.0, 0.0]])  # s runs along the circle x2
         return np.eye(2)
 
+    @cached_property
+    def _inverse_basis(self) -> np.ndarray:
+        return np.linalg.inv(self.basis)
+
     @property
     def local_lengths(self) -> tuple[float, float]:
         """``(S, V)``: the domain is ``[0, S] x [0, V]`` in local coordinates."""
@@ -158,8 +172,7 @@ class Domain:
 
     def to_local(self, x: np.ndarray, wrap: bool = True) -> np.ndarray:
         """Local coordinates ``(s, v)`` of parameters ``(x1, x2)``; periodic ones wrapped into ``[0, S)``."""
-        x = np.asarray(x, dtype=float).reshape(-1, 2)
-        st = x @ np.linalg.inv(self.basis).T
+        st = _apply(self._inverse_basis, np.asarray(x, dtype=float).reshape(-1, 2))
         if wrap:
             S, V = self.local_lengths
             ps, pv = self.periodic
@@ -171,7 +184,7 @@ class Domain:
 
     def to_param(self, st: np.ndarray) -> np.ndarray:
         """Parameters ``(x1, x2)`` of local coordinates (not wrapped)."""
-        return np.asarray(st, dtype=float).reshape(-1, 2) @ self.basis.T
+        return _apply(self.basis, np.asarray(st, dtype=float).reshape(-1, 2))
 
     def exit_time(self, p: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """First ``t >= 0`` at which ``p + t d`` (local coordinates) reaches the boundary, and which ground.
@@ -313,16 +326,73 @@ class GridGraph:
         return self.domain.to_param(st)
 
 
-def _dedupe_min(r, c, w, k):
-    """Keep the lightest of parallel edges (sparse matrices would add them up); orient rows < cols."""
+def _dedupe_min(r, c, w, k, n_grounds: int, first_point: int):
+    """Keep the lightest of parallel edges (sparse matrices would add them up); orient rows < cols.
+
+    Edges between grid nodes are unique (the grid has more than ``2 * radius``
+    cells around each circle), so only those that touch a ground (index
+    ``< n_grounds``) or a crossing point (index ``>= first_point``) are sorted.
+    """
     swap = r > c
     a, b = np.where(swap, c, r), np.where(swap, r, c)
     k = np.where(swap[:, None], -k, k)
-    order = np.lexsort((w, b, a))
-    a, b, w, k = a[order], b[order], w[order], k[order]
-    first = np.ones(len(a), dtype=bool)
-    first[1:] = (a[1:] != a[:-1]) | (b[1:] != b[:-1])
-    return a[first], b[first], w[first], k[first], order[first]
+    idx = np.arange(len(a))
+    special = (a < n_grounds) | (b >= first_point)
+    sub = idx[special]
+    order = sub[np.lexsort((w[sub], b[sub], a[sub]))]
+    first = np.ones(len(order), dtype=bool)
+    first[1:] = (a[order][1:] != a[order][:-1]) | (b[order][1:] != b[order][:-1])
+    kept = np.concatenate([idx[~special], order[first]])
+    return a[kept], b[kept], w[kept], k[kept], kept
+
+
+def _grid_coordinate(domain: Domain, metric: Metric, axis: int) -> tuple[np.ndarray, np.ndarray] | None:
+    """Knots ``(local, grid)`` of the coordinate in which the grid of one axis is uniform, or None (uniform).
+
+    For ``G`` the length element is ``rho |(phi'(x1) dx1, phi'(x2) dx2)|``: in the
+    deformed arclength ``sigma`` of each component it is isotropic,
+    ``rho |(d sigma1, d sigma2)|``, so a grid uniform in ``sigma`` has the
+    stencil's isotropic bias (2.75 % with 16 neighbours).  Uniform in the
+    reference arclength instead, a component stretched 10 times more in one
+    place than in another would see directions squeezed by that factor and a
+    bias of tens of percent (measured: 17 % on a random scene, whatever the
+    resolution).  The other metrics (``g``: Euclidean in reference
+    arclength) keep the uniform grid, and so does the annulus, whose local
+    axes mix the two parameters.
+    """
+    if metric.name != "G" or domain.kind == "annulus":
+        return None
+    B = domain.basis
+    col = B[:, axis]
+    if np.count_nonzero(col) != 1:
+        return None
+    comp = domain.comps[int(np.flatnonzero(col)[0])]
+    speed = np.linalg.norm(comp.velocities, axis=1)
+    speed = np.maximum(speed, 0.05 * max(float(speed.mean()), 1e-300))  # a collapsed segment keeps some cells
+    sigma = np.concatenate([[0.0], np.cumsum(speed * np.diff(comp.params))])
+    return comp.params, sigma
+
+
+def _ticks(knots, length: float, n_cells: int) -> np.ndarray:
+    """``n_cells + 1`` node positions on ``[0, length]``, uniform in the grid coordinate of ``knots``."""
+    if knots is None:
+        return np.linspace(0.0, length, n_cells + 1)
+    local, grid = knots
+    t = np.interp(np.linspace(0.0, grid[-1], n_cells + 1), grid, local)
+    t[0], t[-1] = 0.0, length
+    return t
+
+
+def _extended(ticks: np.ndarray, periodic: bool, idx: np.ndarray) -> np.ndarray:
+    """Position of node index ``idx`` (any integer): periodic copies, or linear extension past the ends."""
+    n = len(ticks) - 1
+    if periodic:
+        k = np.floor_divide(idx, n)
+        return ticks[idx - k * n] + k * ticks[-1]
+    i = np.clip(idx, 0, n)
+    lo = ticks[0] + (idx - 0) * (ticks[1] - ticks[0])
+    hi = ticks[-1] + (idx - n) * (ticks[-1] - ticks[-2])
+    return np.where(idx < 0, lo, np.where(idx > n, hi, ticks[i]))
 
 
 def build_graph(
@@ -337,7 +407,9 @@ def build_graph(
     metric : Metric
         Gives the exact edge weights.
     resolution : int, default 128
-        Number of grid cells along the longer side of the domain.
+        Number of grid cells along the longer side of the domain, measured in
+        the grid coordinate (deformed arclength for ``G``, see
+        :func:`_grid_coordinate`; reference arclength otherwise).
     neighbours : {8, 16, 32}, default 16
         Stencil of the grid moves.
     window : int, default 2
@@ -357,16 +429,25 @@ def build_graph(
     ps, pv = domain.periodic
     ng = domain.n_grounds
     radius = {4: 1, 8: 1, 16: 2, 32: 3}.get(neighbours, 3)
+    knots = [_grid_coordinate(domain, metric, 0), _grid_coordinate(domain, metric, 1)]
+    glen = [(S, V)[k] if knots[k] is None else float(knots[k][1][-1]) for k in (0, 1)]  # lengths in grid coordinates
     if domain.kind in ("triangle", "annulus"):
         ns = nv = max(int(resolution), 3)
     else:
-        h0 = max(S, V) / max(int(resolution), 2)
-        ns, nv = max(int(np.ceil(S / h0)), 2), max(int(np.ceil(V / h0)), 2)
+        h0 = max(glen) / max(int(resolution), 2)
+        ns, nv = max(int(np.ceil(glen[0] / h0)), 2), max(int(np.ceil(glen[1] / h0)), 2)
     if ps:
         ns = max(ns, 2 * radius + 3)
     if pv:
         nv = max(nv, 2 * radius + 3)
+    ticks_s, ticks_v = _ticks(knots[0], S, ns), _ticks(knots[1], V, nv)
     h = np.array([S / ns, V / nv])
+    cell = np.array([np.diff(ticks_s).max(), np.diff(ticks_v).max()])  # largest cell sides
+
+    def at(ti, tj):
+        """Local coordinates of node indices (unwrapped across seams, extended past the ends)."""
+        return np.column_stack([_extended(ticks_s, ps, ti), _extended(ticks_v, pv, tj)])
+
     # grid nodes: a in [0, ns) if periodic else (0, ns); same for b
     a_range = np.arange(0, ns) if ps else np.arange(1, ns)
     b_range = np.arange(0, nv) if pv else np.arange(1, nv)
@@ -379,7 +460,7 @@ def build_graph(
         node_of[ns, :] = node_of[0, :]
     if pv:
         node_of[:, nv] = node_of[:, 0]
-    grid_st = np.column_stack([ii * h[0], jj * h[1]])
+    grid_st = at(ii, jj)
     n_grid = len(ii)
     pts = domain.to_local(domain.points) if len(domain.points) else np.empty((0, 2))
     n_pts = len(pts)
@@ -414,18 +495,18 @@ def build_graph(
         interior = q >= ng
         if k < len(half):  # each interior edge once
             P = grid_st[interior]
-            add(src[interior], q[interior], P, P + np.array([di, dj]) * h, False, kk[interior])
+            add(src[interior], q[interior], P, at(ii[interior] + di, jj[interior] + dj), False, kk[interior])
         out = ~interior
         if out.any():
             p = grid_st[out]
-            d = np.broadcast_to(np.array([di, dj]) * h, p.shape)
+            d = at(ii[out] + di, jj[out] + dj) - p
             t, which = domain.exit_time(p, d)
             t = np.minimum(t, 1.0)
             add(src[out], which, p, p + t[:, None] * d, True, np.zeros((out.sum(), 2), dtype=np.int64))
 
     if n_pts:
-        ci = np.floor(pts[:, 0] / h[0]).astype(int)
-        cj = np.floor(pts[:, 1] / h[1]).astype(int)
+        ci = np.clip(np.searchsorted(ticks_s, pts[:, 0], side="right") - 1, 0, ns - 1)
+        cj = np.clip(np.searchsorted(ticks_v, pts[:, 1], side="right") - 1, 0, nv - 1)
         offs = np.arange(-window + 1, window + 1)
         oi, oj = np.meshgrid(offs, offs, indexing="ij")
         ti = (ci[:, None] + oi.ravel()[None, :]).ravel()
@@ -433,7 +514,7 @@ def build_graph(
         owner = np.repeat(np.arange(n_pts), oi.size)
         q, kk = target(ti, tj)
         interior = q >= ng
-        tgt = np.column_stack([ti * h[0], tj * h[1]])
+        tgt = at(ti, tj)
         add(cross_nodes[owner[interior]], q[interior], pts[owner[interior]], tgt[interior], False, kk[interior])
         # straight moves to a ground: towards each window node outside, along the local axes, to the diagonal
         starts, dirs, owners = [pts[owner[~interior]]], [tgt[~interior] - pts[owner[~interior]]], [owner[~interior]]
@@ -455,7 +536,7 @@ def build_graph(
                 if per:
                     shift[:, axis] = -period * np.round(delta[:, axis] / period)
             delta = delta + shift
-            near = (np.abs(delta) <= window * h).all(axis=1)
+            near = (np.abs(delta) <= window * cell).all(axis=1)
             # the move lands on the copy of b shifted by `shift`: that many periods across the seams
             kk = np.column_stack([np.round(shift[:, 0] / S) if ps else 0 * shift[:, 0],
                                   np.round(shift[:, 1] / V) if pv else 0 * shift[:, 1]]).astype(np.int64)
@@ -468,7 +549,7 @@ def build_graph(
     ground = np.concatenate([np.full(len(x), flag) for x, flag in zip(A_l, G_l)])
     winds = np.vstack(K_l).astype(np.int64)
     w = np.maximum(segment_lengths(metric, domain.comps, domain.to_param(P), domain.to_param(Q)), _TINY)
-    r, c, w, winds, kept = _dedupe_min(rows, cols, w, winds)
+    r, c, w, winds, kept = _dedupe_min(rows, cols, w, winds, ng, ng + n_grid)
     exit_points = np.full((max(ng, 1), len(coords), 2), np.nan)
     g = ground[kept]
     exit_points[r[g], c[g]] = Q[kept][g]  # grounds have the smallest indices, so they are the rows

@@ -96,6 +96,11 @@ from .topology import turning_number, winding_number
 
 __all__ = ["penalty", "Penalty", "Pair"]
 
+#: searches from a crossing point stop at this factor times (its distance to the boundary + the largest one):
+#: a curve between two points longer than sending both to the boundary is never used (see grid_distances);
+#: the factor covers the grid's overestimate (at most 8 % with 8 neighbours) with a wide margin
+_SEARCH_BOUND = 1.5
+
 #: worst relative overestimate of grid distances by stencil (shared/NUMERICS.md), plus a margin for coarse grids
 _STENCIL_BIAS = {8: 0.0824, 16: 0.0275, 32: 0.0131}
 
@@ -388,7 +393,7 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
                 return None, None
             return int(neg[key[1]]), int(pos[key[0]])
     else:
-        T, route = grid_distances(graph, backend)
+        T, route = grid_distances(graph, backend, bound=_SEARCH_BOUND if backend == "scipy" else None)
         nt = ng + len(domain.points)
         supply = np.zeros(nt, dtype=int)
         supply[ng + neg] = 1
@@ -431,7 +436,7 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
                               end_ground=v if v < ng else None, tol=tol, atol=atol)
             # point to boundary: every stretch of the boundary that the grid cannot rule out
             a, g, flip = (u, v, False) if v < ng else (v, u, True)
-            polys = route.candidates(a, g, 2 * (bias - 1))
+            polys = route.candidates(a, g, 1.0)
             if len(polys) > 1:  # rank the candidates by their coarse geodesics; refine the close ones only
                 coarse = [coarse_geodesic(domain, metric, poly, end_ground=g) for poly in polys]
                 shortest = min(length for _, length in coarse)
@@ -501,7 +506,10 @@ def penalty(
     tol : float, default 1e-3
         Relative tolerance of each refined geodesic length.
     resolution : int, default 128
-        Grid cells along the longer side of each pair domain.
+        Grid cells along the longer side of each pair domain (in deformed
+        arclength for ``G``, see :func:`direct.grid.build_graph`).  With
+        refinement the grid only routes the geodesics and ranks them; their
+        lengths, hence the tolerance, come from the refinement.
     neighbours : {8, 16, 32}, default 16
         Grid stencil.
     backend : {"scipy", "networkx"}, default "scipy"

@@ -119,3 +119,45 @@ def test_triangle_domain_has_diagonal_as_boundary():
     t = dom.exit_time(np.array([[0.2, 0.25]]), np.array([[1.0, 0.0]]))
     assert t[0] == pytest.approx(0.05)
     assert dom.boundary_distance(np.array([[0.2, 0.25]]))[0] == pytest.approx(0.05 / np.sqrt(2))
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_bounded_searches_keep_every_entry_program_34_can_use(seed):
+    """Searches stopped at ``bound * (d_a + max d_b)`` lose only pairs dearer than two boundary curves."""
+    sc = random_crossing_scene(seed, n_vert=6, min_crossings=3)
+    met = get_metric("G")
+    for dom in domains(sc, direct.find_crossings(sc)):
+        g = build_graph(dom, met, resolution=40)
+        full, _ = grid_distances(g)
+        for bound in (1.0, 1.5):
+            part, route = grid_distances(g, bound=bound)
+            kept = np.isfinite(part)
+            np.testing.assert_allclose(part[kept], full[kept], rtol=1e-12)
+            d0 = full[1:, 0]
+            for a, b in zip(*np.nonzero(~kept)):
+                assert a != b and a > 0 and b > 0
+                assert full[a, b] >= bound * (d0[a - 1] + d0[b - 1]) * (1 - 1e-12)
+            # routes from the boundary search and the bounded ones are real curves of the stated length
+            for a in range(1, part.shape[0]):
+                poly = route(a, 0)
+                assert segment_lengths(met, dom.comps, poly[:-1], poly[1:]).sum() == pytest.approx(part[a, 0], rel=1e-9)
+
+
+def test_grid_is_uniform_in_deformed_arclength_for_G():
+    """A component stretched unevenly gets cells of equal deformed length: the stencil's bias stays isotropic."""
+    a = direct.Component([[0, 0], [1, 0], [2, 0]], [[-1, -1], [-0.9, -0.9], [1, 1]], name="A")  # speeds 0.14, 2.6
+    b = direct.Component([[0, 1], [2, 1]], [[-1, 1], [1, -1]], name="B")
+    sc = direct.Scene((a, b))
+    met = get_metric("G")
+    (dom,) = domains(sc, direct.find_crossings(sc))
+    g = build_graph(dom, met, resolution=32)
+    grid_nodes = np.setdiff1d(np.arange(g.n_grounds, g.n_nodes), g.crossing_nodes)
+    s_nodes = np.unique(np.round(g.coords[grid_nodes, 0], 12))
+    sigma = np.interp(s_nodes, a.params, np.concatenate([[0], np.cumsum(np.linalg.norm(np.diff(a.deformed, axis=0),
+                                                                                       axis=1))]))
+    steps = np.diff(np.concatenate([[0.0], sigma, [sigma[-1] + (sigma[1] - sigma[0])]]))
+    np.testing.assert_allclose(steps[:-1], steps[0], rtol=1e-9)
+    # the metric g is Euclidean in the reference arclength: its grid stays uniform there
+    g2 = build_graph(dom, get_metric("g"), resolution=32)
+    s2 = np.unique(np.round(g2.coords[np.setdiff1d(np.arange(g2.n_grounds, g2.n_nodes), g2.crossing_nodes), 0], 12))
+    np.testing.assert_allclose(np.diff(s2), np.diff(s2)[0], rtol=1e-9)
