@@ -373,22 +373,28 @@ def segment_lengths(metric: Metric, comps, P: np.ndarray, Q: np.ndarray, gradien
     ci, cj = comps
     if m == 0:
         return (np.empty(0), np.empty((0, 4))) if gradient else np.empty(0)
-    ts = [np.zeros(m), np.ones(m)]
-    es = [np.arange(m), np.arange(m)]
+    es, ts = [], []
     for axis, comp in enumerate((ci, cj)):
         u0, u1 = P[:, axis], Q[:, axis]
         vp = _vertex_params(comp, float(min(u0.min(), u1.min())), float(max(u0.max(), u1.max())))
         e, t = _breaks(vp, u0, u1)
         es.append(e)
         ts.append(t)
-    edge = np.concatenate(es)
-    t = np.concatenate(ts)
+    split = np.zeros(m, dtype=bool)
+    split[np.concatenate(es)] = True
+    whole = np.flatnonzero(~split)  # most segments lie in one cell: a single piece [0, 1]
+    many = np.flatnonzero(split)
+    # the others: sort their break points and cut them into consecutive pieces
+    edge = np.concatenate([many, many] + es)
+    t = np.concatenate([np.zeros(len(many)), np.ones(len(many))] + ts)
     order = np.lexsort((t, edge))
     edge, t = edge[order], t[order]
     same = edge[1:] == edge[:-1]
     ta, tb, pe = t[:-1][same], t[1:][same], edge[:-1][same]
     keep = tb > ta
-    ta, tb, pe = ta[keep], tb[keep], pe[keep]
+    ta = np.concatenate([np.zeros(len(whole)), ta[keep]])
+    tb = np.concatenate([np.ones(len(whole)), tb[keep]])
+    pe = np.concatenate([whole, pe[keep]])
     d = Q[pe] - P[pe]
     mid = P[pe] + 0.5 * (ta + tb)[:, None] * d
     k1, _ = _locate(ci, mid[:, 0])
