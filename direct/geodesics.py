@@ -585,7 +585,7 @@ def _coarse_geodesic(
     """
     X, modes = _resampled_with_ends(domain, route, n, start_ground, end_ground, closed)
     for _ in range(rounds):
-        X = _optimize_level(domain, metric, X, _normal_modes(X, modes, closed), shift, scale)
+        X = _optimize_level(domain, metric, X, _normal_modes(X, modes, closed), shift, scale, polish=False)
         if end_ground is not None:
             X, modes = _truncate_at_boundary(domain, end_ground, X, modes)
     return X
@@ -688,9 +688,9 @@ def _newton(par, unpack, length, assemble, z, scale, max_iter):
     for _ in range(max_iter):
         if isinstance(H, tuple):
             diag, off = H
-            hscale = max(float(np.abs(diag).max()), 1e-300)
+            damp = np.maximum(np.abs(diag), 1e-12 * max(float(np.abs(diag).max()), 1e-300))  # Marquardt scaling
             ab = np.zeros((3, len(diag)))
-            ab[0, 1:], ab[1], ab[2, :-1] = off, diag + lam * hscale, off
+            ab[0, 1:], ab[1], ab[2, :-1] = off, diag + lam * damp, off
             try:
                 dz = solve_banded((1, 1), ab, -grad, check_finite=False)
             except (LinAlgError, ValueError):
@@ -707,6 +707,12 @@ def _newton(par, unpack, length, assemble, z, scale, max_iter):
         if decrease <= 1e-11 * f:
             return X, True
         t, accepted = 1.0, False
+        if par.banded:  # no vertex moves more than half its shorter segment in one step: the curve keeps its shape
+            seg = np.linalg.norm(np.diff(X, axis=0), axis=1)
+            room = np.minimum(seg[np.maximum(par.vertex - 1, 0)], seg[np.minimum(par.vertex, len(seg) - 1)])
+            move = np.abs(dz) * np.sqrt(par._diag)
+            worst = float(np.max(move / np.maximum(room, 1e-300)))
+            t = min(1.0, 0.5 / worst) if worst > 0 else 1.0
         for _ls in range(12):
             X_new = unpack(par.clip(z + t * dz))
             f_new = length(X_new)
@@ -720,19 +726,24 @@ def _newton(par, unpack, length, assemble, z, scale, max_iter):
                 return X, False
             continue
         z = par.pack(X_new)
+        stalled = f - f_new <= 1e-13 * f and decrease <= 1e-8 * f  # converged to rounding
         X, f = X_new, f_new
+        if stalled:
+            return X, True
         lam = max(lam / 10, 1e-12)
         f, grad, H = assemble(X)
     return X, False
 
 
 def _optimize_level(domain: Domain, metric: Metric, X0: np.ndarray, modes: list, shift, scale: float,
-                    max_iter: int = 20) -> np.ndarray:
+                    max_iter: int = 20, polish: bool = True) -> np.ndarray:
     """Minimize the exact length of a polyline over its free coordinates.
 
-    Damped Newton (Levenberg-Marquardt) with a backtracking line search; where
-    it stalls (lengths that are not smooth, such as the degenerate norm of the
-    euclid metric) an L-BFGS-B polish takes over.
+    Damped Newton (Levenberg-Marquardt with Marquardt's diagonal scaling) with
+    a backtracking line search; where it stalls (lengths that are not smooth,
+    such as the degenerate norm of the euclid metric) an L-BFGS-B polish takes
+    over, unless ``polish`` is False (the coarse pass, which only needs the
+    shape of the curve).
     """
     comps = domain.comps
     par = _Parametrization(X0, modes, shift)
@@ -775,7 +786,7 @@ def _optimize_level(domain: Domain, metric: Metric, X0: np.ndarray, modes: list,
 
     z = par.pack(X0)
     X, converged = _newton(par, unpack, length, assemble, z, scale, max_iter)
-    if converged:
+    if converged or not polish:
         return X
     z = par.pack(X)
 

@@ -16,8 +16,10 @@ Methods, on the 60-degree crossing (``J^G`` known from shared/NUMERICS.md):
   metric, which is isotropic here (``|r|^2 |dx|`` with unit speeds).
 
 Plus the assignment program (34) solved by ``linear_sum_assignment`` against
-the paper's enumeration, and the growth of the pipeline's time with the
-number of crossings.
+the paper's enumeration, the growth of the pipeline's time with the number
+of crossings and with ``1 / tol``, and the networkx pipeline (a networkx graph,
+a full Dijkstra search from every terminal) against this one (bounded scipy
+searches) at equal resolution on zigzags of 3, 10 and 30 crossings.
 """
 
 from __future__ import annotations
@@ -124,9 +126,26 @@ def main() -> list[dict]:
 
     for n in (10, 30, 100):
         sc = zigzag(n)
-        res, dt = timed(direct.penalty, sc)
+        res, dt = timed(direct.penalty, sc, repeat=3 if n <= 30 else 1)
         rows.append(dict(method="direct, zigzag", setting=f"crossings={len(res.crossings)}", value=res.value,
                          rel_error=res.error_estimate / res.value, seconds=dt))
+    # the cost against 1/tol on the 10-crossing zigzag (relative errors against tol 1e-8)
+    sc = zigzag(10)
+    ref = direct.penalty(sc, tol=1e-8).value
+    for tol in (1e-2, 1e-3, 1e-4, 1e-5, 1e-6):
+        res, dt = timed(direct.penalty, sc, tol=tol, repeat=3)
+        rows.append(dict(method="direct, zigzag tol", setting=f"tol={tol:g}", value=res.value,
+                         rel_error=abs(res.value - ref) / ref, seconds=dt))
+    # networkx (full searches from every terminal) against scipy (bounded searches) at equal resolution
+    for n in (3, 10, 30):
+        sc = zigzag(n)
+        for backend in ("scipy", "networkx"):
+            res, dt = timed(direct.penalty, sc, refine=False, backend=backend, repeat=2 if backend == "scipy" else 1)
+            rows.append(dict(method=f"grid stage, {backend}", setting=f"crossings={n}", value=res.value,
+                             rel_error="", seconds=dt))
+            res, dt = timed(direct.penalty, sc, backend=backend, repeat=2 if backend == "scipy" else 1)
+            rows.append(dict(method=f"pipeline, {backend}", setting=f"crossings={n}", value=res.value,
+                             rel_error="", seconds=dt))
 
     with open(os.path.join(HERE, "benchmark.csv"), "w", newline="") as fh:
         w = csv.DictWriter(fh, fieldnames=["method", "setting", "value", "rel_error", "seconds"])
@@ -171,7 +190,7 @@ def _summary(rows, cal):
         err = f"{r['rel_error']:.1e}" if r["rel_error"] != "" else ""
         lines.append(f"| {r['method']} | {r['setting']} | {err} | {r['seconds']:.4f} | {r['seconds'] / cal:.2f} |")
     nx96, sc96 = pick("networkx", "N=96"), pick("dijkstra-16", "N=96")
-    lines += ["", f"- networkx pipeline / scipy pipeline at equal resolution (N=96, grid only): "
+    lines += ["", f"- networkx pipeline / scipy pipeline at equal resolution (N=96, grid only, 60-degree crossing): "
               f"{nx96['seconds'] / sc96['seconds']:.1f} x slower."]
     e8 = pick("enumeration (34)", "n+=n-=8")["seconds"] / pick("assignment (34)", "n+=n-=8")["seconds"]
     lines += [f"- enumeration of (34) / assignment at 8 + 8 points: {e8:.0f} x slower."]
@@ -180,6 +199,19 @@ def _summary(rows, cal):
     t = np.array([r["seconds"] for r in zz])
     slope = np.polyfit(np.log(n), np.log(t), 1)[0]
     lines += [f"- pipeline time against the number of crossings (zigzag, 10 to 100): exponent {slope:.2f}."]
+    tt = [r for r in rows if r["method"] == "direct, zigzag tol"]
+    inv = np.array([1 / float(r["setting"].split("=")[1]) for r in tt])
+    t = np.array([r["seconds"] for r in tt])
+    slope_tol = np.polyfit(np.log(inv), np.log(t), 1)[0]
+    lines += [f"- pipeline time against 1/tol (10-crossing zigzag, tol 1e-2 to 1e-6): exponent {slope_tol:.2f}."]
+    z10 = pick("direct, zigzag", "crossings=10")["seconds"]
+    z100 = pick("direct, zigzag", "crossings=100")["seconds"]
+    lines += [f"- 10 crossings at tol 1e-3: {z10:.3f} s (target 0.2 s); 100 crossings: {z100:.2f} s (target 5 s)."]
+    for n in (3, 10, 30):
+        g = pick("grid stage, networkx", f"crossings={n}")["seconds"] / pick("grid stage, scipy", f"crossings={n}")["seconds"]
+        f = pick("pipeline, networkx", f"crossings={n}")["seconds"] / pick("pipeline, scipy", f"crossings={n}")["seconds"]
+        lines += [f"- networkx / scipy at equal resolution (128), zigzag with {n} crossings: grid stage {g:.1f} x, "
+                  f"whole pipeline {f:.1f} x."]
     with open(os.path.join(HERE, "benchmark.md"), "w") as fh:
         fh.write("\n".join(lines) + "\n")
     print("\n".join(lines))
