@@ -57,6 +57,11 @@ def _add_method_options(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--no-refine", dest="refine", action="store_false", help="report the grid (Dijkstra) value without refinement"
     )
+    p.add_argument(
+        "--second-pass", choices=["auto", "on", "off"], default="auto",
+        help="solve again from a second grid's routes and add the spread to the error estimate "
+        "(auto: when tol < 1e-4)",
+    )
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -113,6 +118,7 @@ def _compute(args: argparse.Namespace):
         neighbours=args.neighbours,
         backend=args.backend,
         refine=args.refine,
+        second_pass={"auto": None, "on": True, "off": False}[args.second_pass],
     )
     return scene, result
 
@@ -179,12 +185,13 @@ def summary(scene, result) -> str:
     lines += _table(rows)
     s = result.settings
     metric = ", ".join(
-        f"{k}={v}" for k, v in s.items() if k not in ("metric", "tol", "resolution", "neighbours", "backend", "refine")
+        f"{k}={v}" for k, v in s.items()
+        if k not in ("metric", "tol", "resolution", "neighbours", "backend", "refine", "second_pass")
     )
     lines.append(
         f"metric: {s.get('metric')}{f' ({metric})' if metric else ''}; tol={s.get('tol')}, "
         f"resolution={s.get('resolution')}, neighbours={s.get('neighbours')}, backend={s.get('backend')}, "
-        f"refine={s.get('refine')}"
+        f"refine={s.get('refine')}, second pass={s.get('second_pass')}"
     )
     lines.append("")
     n = len(result.crossings)

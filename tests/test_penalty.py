@@ -202,3 +202,16 @@ def test_grid_value_is_invariant_under_reparametrization_for_G():
     assert grids[1] == pytest.approx(grids[0], rel=1e-4)
     assert all(exact <= v <= 1.02 * exact for v in grids)
     assert direct.penalty(stretched(8.0), tol=1e-6).value == pytest.approx(exact, rel=1e-6)
+
+
+@pytest.mark.parametrize("seed", range(2))
+def test_second_pass_keeps_the_better_family_and_widens_the_estimate(seed):
+    """Below tol 1e-4 each domain is solved from two grids' routes; the spread joins the error estimate."""
+    sc = random_crossing_scene(seed, min_crossings=2)
+    one = direct.penalty(sc, tol=1e-5, second_pass=False)
+    two = direct.penalty(sc, tol=1e-5)
+    assert two.settings["second_pass"] and not one.settings["second_pass"]
+    assert not direct.penalty(sc, tol=1e-3).settings["second_pass"]
+    other = direct.penalty(sc, tol=1e-5, second_pass=False, resolution=96)
+    assert two.value <= min(one.value, other.value) + 1e-12 * one.value
+    assert two.error_estimate >= abs(one.value - other.value) - 1e-12 * one.value
