@@ -710,6 +710,7 @@ def _newton(par, unpack, length, assemble, z, scale, max_iter):
         if par.banded:  # no vertex moves more than half its shorter segment in one step: the curve keeps its shape
             seg = np.linalg.norm(np.diff(X, axis=0), axis=1)
             room = np.minimum(seg[np.maximum(par.vertex - 1, 0)], seg[np.minimum(par.vertex, len(seg) - 1)])
+            room = np.maximum(room, 0.25 * float(np.mean(seg)))  # a vertex beside a tiny segment may still move
             move = np.abs(dz) * np.sqrt(par._diag)
             worst = float(np.max(move / np.maximum(room, 1e-300)))
             t = min(1.0, 0.5 / worst) if worst > 0 else 1.0
@@ -882,6 +883,10 @@ def refine(
             # last difference, three times that correction: the first levels are not always asymptotic.
             diff = history[-2] - history[-1]
             estimate = abs(diff)
+            if len(history) >= 3:
+                # a level that barely moves after one that moved a lot has stalled (a kink it cannot cross),
+                # not converged: with an error ~ n^-2 each change is about a quarter of the one before
+                estimate = max(estimate, abs(history[-3] - history[-2]) / 4.0)
             if estimate <= max(tol * abs(history[-1]), atol) or n >= max_segments:
                 return RefinedPath(X, history[-1] - diff / 3.0, Ln, estimate, len(X) - 1)
         elif Ln == 0.0:
