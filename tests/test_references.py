@@ -1,0 +1,26 @@
+"""Non-axis-aligned crossings against an independent eikonal-ODE reference (tests/references.py)."""
+
+import numpy as np
+import pytest
+
+import direct
+from references import crossing_reference
+
+
+def test_reference_reproduces_the_known_values():
+    assert crossing_reference(np.pi / 3) / 2 == pytest.approx(0.2581226580725618, rel=1e-12)  # NUMERICS.md
+    assert crossing_reference(np.pi / 2, 0.3, 0.5, 0.4, 0.6) == pytest.approx(2 * 0.3**3 / 3, rel=1e-12)
+    assert crossing_reference(np.pi / 2, 0.3, 0.5, 0.4, 0.6, k=4) == pytest.approx(2 * 0.3**5 / 5, rel=1e-12)
+
+
+@pytest.mark.parametrize("seed", range(4))
+@pytest.mark.parametrize("metric, k", [("G", 2), ("g", 4)])
+def test_any_angle_to_1e6_with_a_covering_estimate(seed, metric, k):
+    rng = np.random.default_rng(seed)
+    alpha = rng.uniform(0.15, np.pi - 0.15)
+    arms = rng.uniform(0.3, 1.5, 4)
+    exact = crossing_reference(alpha, *arms, k=k)
+    res = direct.penalty(direct.scenes.cross(*arms, angle=alpha), metric, tol=1e-6)
+    err = abs(res.value - exact)
+    assert err <= 1e-6 * exact
+    assert err <= res.error_estimate
