@@ -364,11 +364,12 @@ def _segment_derivatives(metric: Metric, comps, P: np.ndarray, Q: np.ndarray, st
     if not hessian:
         f, g = segment_lengths(metric, comps, P, Q, gradient=True)
         return f, g, None
-    E = np.eye(4) * step
-    Us = np.vstack([U] + [U + e for e in E] + [U - e for e in E])
+    st = np.broadcast_to(np.asarray(step, dtype=float), (m,))[:, None]  # one step per segment
+    E = np.eye(4)
+    Us = np.vstack([U] + [U + st * e for e in E] + [U - st * e for e in E])
     f, g = segment_lengths(metric, comps, Us[:, :2], Us[:, 2:], gradient=True)
     g = g.reshape(9, m, 4)
-    H = np.stack([(g[1 + k] - g[5 + k]) / (2 * step) for k in range(4)], axis=1)  # H[:, k, :] = d grad / d u_k
+    H = np.stack([(g[1 + k] - g[5 + k]) / (2 * st) for k in range(4)], axis=1)  # H[:, k, :] = d grad / d u_k
     H = 0.5 * (H + H.transpose(0, 2, 1))
     return f[:m], g[0], H
 
@@ -524,6 +525,81 @@ def _on_ground(domain: Domain, ground: int, X: np.ndarray) -> np.ndarray:
     if domain.kind == "triangle":
         on |= np.abs(X[:, 1] - X[:, 0]) <= eps
     return on
+
+
+def _grade_ends(domain: Domain, X: np.ndarray, modes: list, start_ground, end_ground, scale: float):
+    """Free vertices at ``1/2, 1/4, 1/8, ...`` of the segment next to an end that slides on the boundary.
+
+    A geodesic may bend sharply just before it reaches the boundary: a grazing
+    crossing's narrow valley runs into a corner and the curve turns onto a
+    side within a distance of the order of the angle.  Uniform doubling
+    would need thousands of segments to see the turn; a geometric grading
+    sees it with a dozen vertices (down to ``1e-6`` of the domain).
+    """
+    for at_start, ground in ((True, start_ground), (False, end_ground)):
+        if ground is None or len(X) < 2:
+            continue
+        end, nb = (X[0], X[1]) if at_start else (X[-1], X[-2])
+        length = float(np.linalg.norm(nb - end))
+        depth = int(np.clip(np.floor(np.log2(max(length, 1e-300) / (1e-6 * scale))), 0, 14))
+        if depth < 2:
+            continue
+        frac = 0.5 ** np.arange(1, depth + 1)  # distance from the end, as a fraction of the segment
+        pts = end[None, :] + frac[:, None] * (nb - end)[None, :]
+        if at_start:
+            X = np.vstack([X[:1], pts[::-1], X[1:]])
+            modes = [modes[0]] + ["free"] * depth + list(modes[1:])
+        else:
+            X = np.vstack([X[:-1], pts, X[-1:]])
+            modes = list(modes[:-1]) + ["free"] * depth + [modes[-1]]
+    return X, modes
+
+
+def _corner_switch(domain: Domain, metric: Metric, X: np.ndarray, modes: list, k: int) -> list:
+    """Let an end held at a corner of the boundary slide on the other side if that is cheaper.
+
+    An end slides on one side of a rectangle or triangle; the optimizer
+    stops it at the corner where that side ends, even when the geodesic
+    wants to go on along the other side (a grazing crossing, whose narrow
+    valley runs into the corner).  Try a small step along every side through
+    that corner and keep the side of the cheapest.
+    """
+    mode = modes[k]
+    if isinstance(mode, str) or domain.kind in ("cylinder", "annulus", "torus"):
+        return modes
+    L1, L2 = domain.lengths
+    q = X[k]
+    tiny = 1e-12 * max(L1, L2)
+    sides = [(abs(q[0]), np.array([0.0, 0.0]), np.array([0.0, 1.0]), (0.0, L2)),
+             (abs(q[0] - L1), np.array([L1, 0.0]), np.array([0.0, 1.0]), (0.0, L2)),
+             (abs(q[1]), np.array([0.0, 0.0]), np.array([1.0, 0.0]), (0.0, L1)),
+             (abs(q[1] - L2), np.array([0.0, L2]), np.array([1.0, 0.0]), (0.0, L1))]
+    if domain.kind == "triangle":
+        sides.append((abs(q[1] - q[0]) / np.sqrt(2), np.array([0.0, 0.0]), np.array([1.0, 1.0]) / np.sqrt(2),
+                      (0.0, L1 * np.sqrt(2))))
+    through = [sd for sd in sides if sd[0] <= tiny]
+    if len(through) < 2:
+        return modes
+    nb = X[k - 1] if k > 0 else X[1]
+    step = 1e-3 * float(np.linalg.norm(q - nb))
+
+    def cost(p):
+        return float(segment_lengths(metric, domain.comps, nb[None, :], p[None, :])[0])
+
+    best, best_mode = cost(q), mode
+    for _, base, e, (lo, hi) in through:
+        tau = float((q - base) @ e)
+        for sgn in (1.0, -1.0):
+            t = tau + sgn * step
+            if lo <= t <= hi:
+                c = cost(base + t * e)
+                if c < best:
+                    best, best_mode = c, (base, e, lo, hi)
+    if best_mode is mode:
+        return modes
+    out = list(modes)
+    out[k] = best_mode
+    return out
 
 
 def _truncate_at_boundary(domain: Domain, ground: int, X: np.ndarray, modes: list) -> tuple[np.ndarray, list]:
@@ -763,7 +839,8 @@ def _optimize_level(domain: Domain, metric: Metric, X0: np.ndarray, modes: list,
         return float(segment_lengths(metric, comps, X[:-1], X[1:]).sum())
 
     def assemble(X):
-        f, gl, Hl = _segment_derivatives(metric, comps, X[:-1], X[1:], step)
+        seg = np.linalg.norm(X[1:] - X[:-1], axis=1)
+        f, gl, Hl = _segment_derivatives(metric, comps, X[:-1], X[1:], np.minimum(step, np.maximum(1e-3 * seg, 1e-9 * scale)))
         if par.banded:  # tridiagonal in the unknowns: project the 4 x 4 blocks on each vertex's direction
             gV = np.zeros((n + 1, 2))
             gV[:-1] += gl[:, :2]
@@ -866,12 +943,17 @@ def refine(
     while True:
         # rounds of normal moves, the normals recomputed each time, until the length settles:
         # one round cannot carry a vertex past the centre of curvature of the polyline
+        if not closed:
+            X, modes = _grade_ends(domain, X, modes, start_ground, end_ground, scale)
         L_prev = length(X)
         for _round in range(max_rounds):
             X = _optimize_level(domain, metric, X, _normal_modes(X, modes, closed), shift, scale)
             X, modes = _insert_breaks(domain, *_prune_breaks(X, modes))
             if end_ground is not None:
                 X, modes = _truncate_at_boundary(domain, end_ground, X, modes)
+                modes = _corner_switch(domain, metric, X, modes, len(X) - 1)
+            if start_ground is not None:
+                modes = _corner_switch(domain, metric, X, modes, 0)
             L_new = length(X)
             if L_prev - L_new <= 1e-2 * tol * L_new:
                 break

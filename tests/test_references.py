@@ -24,3 +24,14 @@ def test_any_angle_to_1e6_with_a_covering_estimate(seed, metric, k):
     err = abs(res.value - exact)
     assert err <= 1e-6 * exact
     assert err <= res.error_estimate
+
+
+@pytest.mark.parametrize("alpha", [0.01, 0.003])
+def test_grazing_crossings_reach_the_reference(alpha):
+    """A crossing at a small angle: the geodesic runs down a valley of width ~ alpha into a corner and
+    turns onto a side just before it; the graded end of the refinement must see the turn."""
+    exact = crossing_reference(alpha, 0.5, 0.5, 0.5, 0.5)
+    res = direct.penalty(direct.scenes.cross(0.5, 0.5, 0.5, 0.5, angle=alpha))
+    err = abs(res.value - exact)
+    assert err <= 1e-3 * exact
+    assert err <= res.error_estimate
