@@ -2,9 +2,9 @@
 
 import numpy as np
 import pytest
+from references import crossing_reference
 
 import direct
-from references import crossing_reference
 
 
 def test_reference_reproduces_the_known_values():
