@@ -840,7 +840,8 @@ def _optimize_level(domain: Domain, metric: Metric, X0: np.ndarray, modes: list,
 
     def assemble(X):
         seg = np.linalg.norm(X[1:] - X[:-1], axis=1)
-        f, gl, Hl = _segment_derivatives(metric, comps, X[:-1], X[1:], np.minimum(step, np.maximum(1e-3 * seg, 1e-9 * scale)))
+        steps = np.minimum(step, np.maximum(1e-3 * seg, 1e-9 * scale))  # short segments get short steps
+        f, gl, Hl = _segment_derivatives(metric, comps, X[:-1], X[1:], steps)
         if par.banded:  # tridiagonal in the unknowns: project the 4 x 4 blocks on each vertex's direction
             gV = np.zeros((n + 1, 2))
             gV[:-1] += gl[:, :2]
