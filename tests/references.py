@@ -10,7 +10,8 @@ the eikonal equation ``(k + 1)^2 f^2 + f'^2 = Q(theta)^2``,
 ``Q = (1 - cos(alpha) sin(2 theta))^(k/2)`` (shared/NUMERICS.md).  The ODE is
 integrated from the cheapest direction ``theta_0`` (where the geodesic is
 the straight ray and ``f = Q / (k + 1)``; the singular start uses the
-second-order expansion ``f = Q_0/(k+1) + c (theta - theta_0)^2``) with
+second-order expansion ``f = Q_0/(k+1) + c (theta - theta_0)^2`` over an
+interval ``1e-3 sin(alpha)`` wide, inside the valley of width ``~ alpha``) with
 ``solve_ivp`` at ``rtol = 1e-12``; the distance to the boundary of the
 parameter rectangle ``[-a, b] x [-c, d]`` is the minimum of
 ``r(theta)^(k+1) f(theta)`` over the boundary, and ``J`` counts the two points
@@ -37,7 +38,7 @@ def _profile(alpha: float, k: int):
     h = 1e-4
     B = (Q(t0 + h) - 2 * q0 + Q(t0 - h)) / (2 * h * h)  # Q = q0 + B d^2 + ...
     c = (-2 * (k + 1) * q0 + np.sqrt(4 * (k + 1) ** 2 * q0**2 + 32 * q0 * B)) / 8
-    d0 = 1e-3
+    d0 = 1e-3 * min(1.0, abs(np.sin(alpha)))  # the valley around theta_0 is about alpha wide
     branches = {}
     for sgn in (1, -1):
         def rhs(t, f, sgn=sgn):

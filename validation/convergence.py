@@ -1,7 +1,10 @@
 """Accuracy of `direct` on cases with a known value, against the tolerance.
 
 Run ``python validation/convergence.py``: writes ``convergence.csv`` and
-``convergence.png`` beside this file and prints a markdown table.  Each row is
+``convergence.png`` beside this file and prints a markdown table.  References:
+closed forms for the right angle, shared/NUMERICS.md at 60 degrees, and
+``tests/references.py`` (the eikonal ODE of a straight crossing, integrated
+independently of ``direct``) at other angles and uneven arm lengths.  Each row is
 one call of ``direct.penalty`` (wall time measured in this process; compare
 the ratios, the machines are shared).
 """
@@ -10,6 +13,7 @@ from __future__ import annotations
 
 import csv
 import os
+import sys
 import time
 
 import numpy as np
@@ -17,12 +21,22 @@ import numpy as np
 import direct
 
 HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, os.path.join(HERE, "..", "tests"))
+from references import crossing_reference  # noqa: E402  (eikonal ODE, independent of direct)
+
 CROSS60_POINT = 0.2581226580725618  # shared/NUMERICS.md: eikonal ODE, two independent computations
+ARMS = (0.7, 1.1, 0.5, 0.9)
 
 CASES = [
     ("right angle, G", direct.scenes.cross(0.3, 0.5, 0.4, 0.6), "G", 2 * 0.3**3 / 3),
     ("right angle, g (p=2)", direct.scenes.cross(0.3, 0.5, 0.4, 0.6), "g", 2 * 0.3**5 / 5),
     ("60 degrees, G", direct.scenes.get("cross60"), "G", 2 * CROSS60_POINT),
+    ("37 degrees, uneven arms, G", direct.scenes.cross(*ARMS, angle=np.radians(37)), "G",
+     crossing_reference(np.radians(37), *ARMS)),
+    ("124 degrees, uneven arms, g (p=2)", direct.scenes.cross(*ARMS, angle=np.radians(124)), "g",
+     crossing_reference(np.radians(124), *ARMS, k=4)),
+    ("1 degree (grazing), G", direct.scenes.cross(*ARMS, angle=np.radians(1)), "G",
+     crossing_reference(np.radians(1), *ARMS)),
 ]
 TOLS = [1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-7]
 
