@@ -208,8 +208,9 @@ def _summary(rows, cal):
     z100 = pick("direct, zigzag", "crossings=100")["seconds"]
     lines += [f"- 10 crossings at tol 1e-3: {z10:.3f} s (target 0.2 s); 100 crossings: {z100:.2f} s (target 5 s)."]
     for n in (3, 10, 30):
-        g = pick("grid stage, networkx", f"crossings={n}")["seconds"] / pick("grid stage, scipy", f"crossings={n}")["seconds"]
-        f = pick("pipeline, networkx", f"crossings={n}")["seconds"] / pick("pipeline, scipy", f"crossings={n}")["seconds"]
+        key = f"crossings={n}"
+        g = pick("grid stage, networkx", key)["seconds"] / pick("grid stage, scipy", key)["seconds"]
+        f = pick("pipeline, networkx", key)["seconds"] / pick("pipeline, scipy", key)["seconds"]
         lines += [f"- networkx / scipy at equal resolution (128), zigzag with {n} crossings: grid stage {g:.1f} x, "
                   f"whole pipeline {f:.1f} x."]
     with open(os.path.join(HERE, "benchmark.md"), "w") as fh:
