@@ -111,9 +111,11 @@ def circle_scene(deformation, n: int = 256, radius: float = 1.0, name: str = "ci
     deformation : callable
         ``t -> (n, 2)`` array of deformed positions for angles ``t`` (radians).
     n : int, default 256
-        Number of vertices.  The multiple covers ``(cos kt, sin kt)`` put
-        vertices on top of each other when ``k`` divides into ``n`` evenly in
-        a way that repeats them; an odd ``n`` keeps the passes apart.
+        Number of vertices.  A multiple cover ``(cos kt, sin kt)`` with ``k``
+        dividing ``n`` puts the vertices of its passes on top of each other
+        (the exact covers of section 5.2); otherwise the passes are different
+        polygons that cross: ``k = 2`` with an odd ``n`` gives a star polygon
+        with ``n`` crossings.
     radius : float, default 1
         Radius of the reference circle ``j(t) = radius (cos t, sin t)``.
     name : str
