@@ -52,10 +52,11 @@ def _git_commit() -> str:
         if out.returncode != 0:
             return "unavailable"
         commit = out.stdout.strip()
-        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=ROOT,
-                               capture_output=True, text=True, timeout=10)
+        # the code, not the outputs this command rewrites
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no", "--", "*.py", "pyproject.toml"],
+                               cwd=ROOT, capture_output=True, text=True, timeout=10)
         if dirty.returncode == 0 and dirty.stdout.strip():
-            commit += " (with uncommitted changes to tracked files)"
+            commit += " (with uncommitted changes to the code)"
         return commit
     except (OSError, subprocess.SubprocessError):
         return "unavailable"
