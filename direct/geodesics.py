@@ -338,18 +338,23 @@ def _side(domain: Domain, ground: int, q: np.ndarray):
         base = domain.to_param(np.array([[0.0, v]]))[0]
         e = domain.basis[:, 0] / np.linalg.norm(domain.basis[:, 0])
         return base, e, (-np.inf, np.inf)
+    _, base, direction, rng = min(_sides(domain, q), key=lambda c: c[0])
+    return base, direction, rng
+
+
+def _sides(domain: Domain, q: np.ndarray) -> list:
+    """The sides of a rectangle or triangle domain: ``(distance from q, base, direction, (lo, hi))`` each."""
     L1, L2 = domain.lengths
-    cands = [
+    out = [
         (abs(q[0]), np.array([0.0, 0.0]), np.array([0.0, 1.0]), (0.0, L2)),
         (abs(q[0] - L1), np.array([L1, 0.0]), np.array([0.0, 1.0]), (0.0, L2)),
         (abs(q[1]), np.array([0.0, 0.0]), np.array([1.0, 0.0]), (0.0, L1)),
         (abs(q[1] - L2), np.array([0.0, L2]), np.array([1.0, 0.0]), (0.0, L1)),
     ]
     if domain.kind == "triangle":
-        cands.append((abs(q[1] - q[0]) / np.sqrt(2), np.array([0.0, 0.0]), np.array([1.0, 1.0]) / np.sqrt(2),
-                      (0.0, L1 * np.sqrt(2))))
-    _, base, direction, rng = min(cands, key=lambda c: c[0])
-    return base, direction, rng
+        out.append((abs(q[1] - q[0]) / np.sqrt(2), np.array([0.0, 0.0]), np.array([1.0, 1.0]) / np.sqrt(2),
+                    (0.0, L1 * np.sqrt(2))))
+    return out
 
 
 def _segment_derivatives(metric: Metric, comps, P: np.ndarray, Q: np.ndarray, step: float,
@@ -567,17 +572,9 @@ def _corner_switch(domain: Domain, metric: Metric, X: np.ndarray, modes: list, k
     mode = modes[k]
     if isinstance(mode, str) or domain.kind in ("cylinder", "annulus", "torus"):
         return modes
-    L1, L2 = domain.lengths
     q = X[k]
-    tiny = 1e-12 * max(L1, L2)
-    sides = [(abs(q[0]), np.array([0.0, 0.0]), np.array([0.0, 1.0]), (0.0, L2)),
-             (abs(q[0] - L1), np.array([L1, 0.0]), np.array([0.0, 1.0]), (0.0, L2)),
-             (abs(q[1]), np.array([0.0, 0.0]), np.array([1.0, 0.0]), (0.0, L1)),
-             (abs(q[1] - L2), np.array([0.0, L2]), np.array([1.0, 0.0]), (0.0, L1))]
-    if domain.kind == "triangle":
-        sides.append((abs(q[1] - q[0]) / np.sqrt(2), np.array([0.0, 0.0]), np.array([1.0, 1.0]) / np.sqrt(2),
-                      (0.0, L1 * np.sqrt(2))))
-    through = [sd for sd in sides if sd[0] <= tiny]
+    tiny = 1e-12 * max(domain.lengths)
+    through = [sd for sd in _sides(domain, q) if sd[0] <= tiny]
     if len(through) < 2:
         return modes
     nb = X[k - 1] if k > 0 else X[1]
