@@ -7,7 +7,9 @@ geodesic distances):
    :func:`direct.grid.build_graph`, with :func:`scipy.sparse.csgraph.dijkstra`
    or, as an independent cross-check, :mod:`networkx`.  It gives the
    distances between all *terminals* (the boundary parts, then the crossing
-   points) and the route of each geodesic.  Grid distances are lengths of
+   points) and the route of each geodesic.  On the pieces of program (34)
+   the searches are bounded: one from the boundary, then one from each point
+   stopped where no curve can be worth it.  Grid distances are lengths of
    real curves, hence upper bounds, but they keep a metrication bias that
    refining the grid never removes (up to 2.75 % with 16 neighbours, see
    ``shared/NUMERICS.md``).  On a torus, :func:`torus_distances` works on a
@@ -22,12 +24,16 @@ geodesic distances):
    segment lies in one cell where its length is smooth.  Free vertices move
    across the curve only (along the polyline's normals: moves along it barely
    change the length and make the problem singular), ends slide on their
-   boundary.  A damped Newton method uses the exact gradient
-   (:func:`direct.metric.segment_lengths`) and a sparse Hessian from central
-   differences of it; an L-BFGS-B pass takes over where Newton stalls on a
-   kink.  The number of segments doubles until the length changes by less
-   than the tolerance; the value is Richardson-extrapolated (error ``~ n^-2``)
-   and the error estimate is the whole last change.
+   boundary, with a geometric grading of vertices next to them and the
+   freedom to change side at a corner.  A damped Newton method
+   (Levenberg-Marquardt, Marquardt's scaling, steps limited to half a
+   segment) uses the exact gradient (:func:`direct.metric.segment_lengths`)
+   and a Hessian from central differences of it, tridiagonal in the unknowns
+   of an open curve; an L-BFGS-B pass takes over where Newton stalls on a
+   kink.  The number of segments doubles, three levels at least, until the
+   length changes by less than the tolerance; the value is
+   Richardson-extrapolated (error ``~ n^-2``) and the error estimate is the
+   whole last change, at least a quarter of the change before it.
 """
 
 from __future__ import annotations
@@ -304,7 +310,9 @@ class RefinedPath:
     upper : float
         Exact length of ``points`` (a real curve: an upper bound of the distance).
     error_estimate : float
-        ``|L_n - L_{n/2}|``: three times the Richardson correction applied.
+        ``|L_n - L_{n/2}|`` (three times the Richardson correction applied),
+        at least ``|L_{n/2} - L_{n/4}| / 4``: a level that stalls after one
+        that moved has not converged.
     segments : int
         Number of segments of the final level.
     """
