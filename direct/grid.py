@@ -233,7 +233,8 @@ class GridGraph:
     ----------
     domain : Domain
     h : (2,) ndarray
-        Grid steps along ``s`` and ``v`` (reference arclength).
+        Mean grid steps along ``s`` and ``v`` (reference arclength; for ``G`` the steps are uniform in
+        deformed arclength instead, see :func:`_grid_coordinate`).
     coords : (n_nodes, 2) ndarray
         Local coordinates of every node; ground rows are NaN.
     crossing_nodes : (n_points,) ndarray of int
