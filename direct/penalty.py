@@ -441,7 +441,7 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
             if len(polys) > 1:  # rank the candidates by their coarse geodesics; refine the close ones only
                 coarse = [coarse_geodesic(domain, metric, poly, end_ground=g) for poly in polys]
                 shortest = min(length for _, length in coarse)
-                polys = [poly for poly, length in coarse if length <= 1.02 * shortest]
+                polys = [X for X, length in coarse if length <= 1.02 * shortest]  # refine starts from X
             best = None
             for poly in polys:
                 rp = refine(domain, metric, poly, end_ground=g, tol=tol, atol=atol)
