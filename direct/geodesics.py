@@ -756,8 +756,11 @@ def _insert_breaks(domain: Domain, X: np.ndarray, modes: list) -> tuple[np.ndarr
     return np.array(out_X), out_modes
 
 
-def _newton(par, unpack, length, assemble, z, scale, max_iter):
+def _newton(par, unpack, length, assemble, z, scale, max_iter, rtol=1e-11):
     """Damped Newton (Levenberg-Marquardt) with backtracking: ``(X, converged)``.
+
+    Converged when the Newton decrement (the model's decrease, about twice the
+    length still to gain) is at most ``rtol`` times the length.
 
     ``assemble(X)`` returns the length, its gradient and its Hessian in the
     unknowns: a sparse matrix, or ``(diag, off)`` for a tridiagonal one.
@@ -785,7 +788,7 @@ def _newton(par, unpack, length, assemble, z, scale, max_iter):
             if lam > 1e8:
                 return X, False
             continue
-        if decrease <= 1e-11 * f:
+        if decrease <= rtol * f:
             return X, True
         t, accepted = 1.0, False
         if par.banded:  # no vertex moves more than half its shorter segment in one step: the curve keeps its shape
@@ -869,7 +872,8 @@ def _optimize_level(domain: Domain, metric: Metric, X0: np.ndarray, modes: list,
         return float(f.sum()), Mt @ gX, (Mt @ HX @ M).tocsc()
 
     z = par.pack(X0)
-    X, converged = _newton(par, unpack, length, assemble, z, scale, max_iter)
+    # the coarse pass only needs the shape of the curve: its lengths are not part of any estimate
+    X, converged = _newton(par, unpack, length, assemble, z, scale, max_iter, rtol=1e-11 if polish else 1e-7)
     if converged or not polish:
         return X
     z = par.pack(X)
@@ -964,7 +968,7 @@ def refine(
             if L_prev - L_new <= 1e-2 * tol * L_new:
                 break
             L_prev = L_new
-        Ln = length(X)
+        Ln = L_new  # the length of the last round's polyline
         history.append(Ln)
         if len(history) >= 2:
             # Richardson: with an error ~ n^-2, L_n - L_inf ~ (L_{n/2} - L_n) / 3.  The estimate is the whole
