@@ -647,7 +647,8 @@ def coarse_geodesic(
     """The coarse geodesic near a route (the first stage of :func:`refine`) and its exact length.
 
     Cheap, and enough to rank routes that lead to different local geodesics;
-    the polyline is a start for :func:`refine` with ``straighten=False``.
+    the polyline is a good start for :func:`refine`, whose first stage then
+    has nothing left to do.
     """
     scale = float(max(domain.lengths))
     X = _coarse_geodesic(domain, metric, np.asarray(route, dtype=float), None, end_ground, None, scale, False)
@@ -907,7 +908,6 @@ def refine(
     start: int = 8,
     max_segments: int = 512,
     max_rounds: int = 3,
-    straighten: bool = True,
 ) -> RefinedPath:
     """Refine a grid route into a geodesic: minimize its exact length, multilevel.
 
@@ -935,9 +935,6 @@ def refine(
         First and largest number of segments.
     max_rounds : int
         Rounds of normal moves per level.
-    straighten : bool, default True
-        Straighten the route at a coarse scale first.  False when ``route``
-        is already the output of :func:`coarse_geodesic`.
 
     Returns
     -------
@@ -946,8 +943,7 @@ def refine(
     scale = float(max(domain.lengths))
     route = np.asarray(route, dtype=float)
     shift = route[-1] - route[0] if closed else None
-    if straighten:
-        route = _coarse_geodesic(domain, metric, route, start_ground, end_ground, shift, scale, closed)
+    route = _coarse_geodesic(domain, metric, route, start_ground, end_ground, shift, scale, closed)
     X, modes = _initial_polyline(domain, route, start, start_ground, end_ground, closed)
     history = []
     n = start

@@ -438,14 +438,13 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
             # point to boundary: every stretch of the boundary that the grid cannot rule out
             a, g, flip = (u, v, False) if v < ng else (v, u, True)
             polys = route.candidates(a, g, 1.0)
-            ranked = len(polys) > 1
-            if ranked:  # rank the candidates by their coarse geodesics; refine the close ones only
+            if len(polys) > 1:  # rank the candidates by their coarse geodesics; refine the close ones only
                 coarse = [coarse_geodesic(domain, metric, poly, end_ground=g) for poly in polys]
                 shortest = min(length for _, length in coarse)
-                polys = [X for X, length in coarse if length <= 1.02 * shortest]
+                polys = [X for X, length in coarse if length <= 1.02 * shortest]  # refine starts from X
             best = None
             for poly in polys:
-                rp = refine(domain, metric, poly, end_ground=g, tol=tol, atol=atol, straighten=not ranked)
+                rp = refine(domain, metric, poly, end_ground=g, tol=tol, atol=atol)
                 if best is None or rp.length < best.length:
                     best = rp
             if flip:
