@@ -336,15 +336,15 @@ def _dedupe_min(r, c, w, k, n_grounds: int, first_point: int):
     """
     swap = r > c
     a, b = np.where(swap, c, r), np.where(swap, r, c)
-    k = np.where(swap[:, None], -k, k)
-    idx = np.arange(len(a))
+    k = np.negative(k, out=k.copy(), where=swap[:, None])
     special = (a < n_grounds) | (b >= first_point)
-    sub = idx[special]
+    sub = special.nonzero()[0]
     order = sub[np.lexsort((w[sub], b[sub], a[sub]))]
+    ao, bo = a[order], b[order]
     first = np.ones(len(order), dtype=bool)
-    first[1:] = (a[order][1:] != a[order][:-1]) | (b[order][1:] != b[order][:-1])
-    kept = np.concatenate([idx[~special], order[first]])
-    return a[kept], b[kept], w[kept], k[kept], kept
+    first[1:] = (ao[1:] != ao[:-1]) | (bo[1:] != bo[:-1])
+    kept = np.concatenate([(~special).nonzero()[0], order[first]])
+    return a.take(kept), b.take(kept), w.take(kept), np.take(k, kept, axis=0), kept
 
 
 def _grid_coordinate(domain: Domain, metric: Metric, axis: int) -> tuple[np.ndarray, np.ndarray] | None:
@@ -387,6 +387,8 @@ def _ticks(knots, length: float, n_cells: int) -> np.ndarray:
 def _extended(ticks: np.ndarray, periodic: bool, idx: np.ndarray) -> np.ndarray:
     """Position of node index ``idx`` (any integer): periodic copies, or linear extension past the ends."""
     n = len(ticks) - 1
+    if len(idx) and idx.min() >= 0 and idx.max() <= (n - 1 if periodic else n):  # the nodes themselves
+        return ticks.take(idx)
     if periodic:
         k = np.floor_divide(idx, n)
         return ticks[idx - k * n] + k * ticks[-1]
@@ -461,6 +463,7 @@ def build_graph(
         node_of[ns, :] = node_of[0, :]
     if pv:
         node_of[:, nv] = node_of[:, 0]
+    node_flat = node_of.ravel()
     grid_st = at(ii, jj)
     n_grid = len(ii)
     pts = domain.to_local(domain.points) if len(domain.points) else np.empty((0, 2))
@@ -468,15 +471,11 @@ def build_graph(
     cross_nodes = np.arange(ng + n_grid, ng + n_grid + n_pts)
     coords = np.vstack([np.full((ng, 2), np.nan), grid_st, pts])
 
-    A_l, B_l, P_l, Q_l, G_l, K_l = [], [], [], [], [], []
+    # edges between grid nodes (unique, see _dedupe_min), then the others (to a ground or a crossing point)
+    edges: tuple[list, list] = ([], [])
 
-    def add(p_idx, q_idx, P, Q, ground, winds):
-        A_l.append(p_idx)
-        B_l.append(q_idx)
-        P_l.append(P)
-        Q_l.append(Q)
-        G_l.append(ground)
-        K_l.append(winds)
+    def add(p_idx, q_idx, P, Q, ground, winds, grid=False):
+        edges[0 if grid else 1].append((p_idx, q_idx, P, Q, ground, winds))
 
     def target(ti, tj):
         """Node at grid index (ti, tj) after wrapping, with the seam count; -1 outside or on the boundary."""
@@ -484,26 +483,26 @@ def build_graph(
         kj = np.floor_divide(tj, nv) if pv else np.zeros_like(tj)
         ti, tj = ti - ki * ns, tj - kj * nv
         ok = (ti >= 0) & (ti <= ns) & (tj >= 0) & (tj <= nv)
-        q = np.full(len(ti), -1, dtype=np.int64)
-        q[ok] = node_of[ti[ok], tj[ok]]
+        q = np.where(ok, node_flat.take(np.where(ok, ti * (nv + 1) + tj, 0)), -1)
         return q, np.column_stack([ki, kj])
 
     half = stencil(neighbours)
     full = np.vstack([half, -half])
     src = np.arange(ng, ng + n_grid)
     for k, (di, dj) in enumerate(full):
-        q, kk = target(ii + di, jj + dj)
+        ti, tj = ii + di, jj + dj
+        q, kk = target(ti, tj)
         interior = q >= ng
+        inn, out = interior.nonzero()[0], (~interior).nonzero()[0]
         if k < len(half):  # each interior edge once
-            P = grid_st[interior]
-            add(src[interior], q[interior], P, at(ii[interior] + di, jj[interior] + dj), False, kk[interior])
-        out = ~interior
-        if out.any():
-            p = grid_st[out]
-            d = at(ii[out] + di, jj[out] + dj) - p
+            add(src.take(inn), q.take(inn), np.take(grid_st, inn, axis=0), at(ti.take(inn), tj.take(inn)), False,
+                np.take(kk, inn, axis=0), grid=True)
+        if out.size:
+            p = np.take(grid_st, out, axis=0)
+            d = at(ti.take(out), tj.take(out)) - p
             t, which = domain.exit_time(p, d)
             t = np.minimum(t, 1.0)
-            add(src[out], which, p, p + t[:, None] * d, True, np.zeros((out.sum(), 2), dtype=np.int64))
+            add(src.take(out), which, p, p + t[:, None] * d, True, np.zeros((out.size, 2), dtype=np.int64))
 
     if n_pts:
         ci = np.clip(np.searchsorted(ticks_s, pts[:, 0], side="right") - 1, 0, ns - 1)
@@ -543,17 +542,27 @@ def build_graph(
                                   np.round(shift[:, 1] / V) if pv else 0 * shift[:, 1]]).astype(np.int64)
             add(cross_nodes[a[near]], cross_nodes[b[near]], pts[a[near]], pts[a[near]] + delta[near], False, kk[near])
 
-    rows = np.concatenate(A_l)
-    cols = np.concatenate(B_l)
-    P = np.vstack(P_l)
-    Q = np.vstack(Q_l)
-    ground = np.concatenate([np.full(len(x), flag) for x, flag in zip(A_l, G_l)])
-    winds = np.vstack(K_l).astype(np.int64)
-    w = np.maximum(segment_lengths(metric, domain.comps, domain.to_param(P), domain.to_param(Q)), _TINY)
-    r, c, w, winds, kept = _dedupe_min(rows, cols, w, winds, ng, ng + n_grid)
+    inner, other = edges
+    n_inner = sum(len(e[0]) for e in inner)
+    rows, cols = (np.concatenate([e[i] for e in inner + other]) for i in (0, 1))
+    P, Q = (np.vstack([e[i] for e in inner + other]) for i in (2, 3))
+    winds = np.vstack([e[5] for e in inner + other]).astype(np.int64, copy=False)
+    ground = np.concatenate([np.full(len(e[0]), e[4]) for e in other] + [np.zeros(0, dtype=bool)])
+    identity = np.array_equal(domain.basis, np.eye(2))  # then local coordinates are parameters (no copies)
+    w = np.maximum(segment_lengths(metric, domain.comps, P if identity else domain.to_param(P),
+                                   Q if identity else domain.to_param(Q)), _TINY)
+    # grid edges are unique: only oriented rows < cols; the others are deduplicated
+    r, c, kw = rows[:n_inner], cols[:n_inner], winds[:n_inner]
+    swap = r > c
+    if swap.any():
+        r, c = np.where(swap, c, r), np.where(swap, r, c)
+        kw = np.negative(kw, out=kw.copy(), where=swap[:, None])
+    rs, cs, ws, ks, kept = _dedupe_min(rows[n_inner:], cols[n_inner:], w[n_inner:], winds[n_inner:], ng, ng + n_grid)
     exit_points = np.full((max(ng, 1), len(coords), 2), np.nan)
     g = ground[kept]
-    exit_points[r[g], c[g]] = Q[kept][g]  # grounds have the smallest indices, so they are the rows
+    exit_points[rs[g], cs[g]] = np.take(Q[n_inner:], kept[g], axis=0)  # grounds have the smallest indices: rows
+    r, c, w = np.concatenate([r, rs]), np.concatenate([c, cs]), np.concatenate([w[:n_inner], ws])
+    winds = np.concatenate([kw, ks])
     return GridGraph(
         domain=domain,
         h=h,

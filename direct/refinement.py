@@ -1,0 +1,1136 @@
+r"""Continuous refinement of grid geodesics: exact lengths, multilevel, batched.
+
+The second stage of the geodesic distances of section 5.1.1 (the first,
+grid Dijkstra, is :mod:`direct.geodesics`).  Grid distances keep a
+metrication bias that refining the grid never removes (``shared/NUMERICS.md``),
+so each grid route becomes a polyline whose exact metric length
+(:func:`direct.metric.segment_lengths`) is minimized:
+
+* A coarse pass first (16 segments, each across many cells, where the kinks
+  of the length are small ripples) settles the large-scale shape.
+* The polyline then gets a vertex wherever it crosses a vertex parameter of
+  either component (the metric's norm jumps there and the geodesic
+  refracts), sliding along that line, so that every segment lies in one
+  cell where its length is smooth.  Free vertices move across the curve
+  only (along the polyline's normals: moves along it barely change the
+  length and make the problem singular); ends slide on their boundary, with
+  a geometric grading of vertices next to them and the freedom to change
+  side at a corner.
+* A damped Newton method (Levenberg-Marquardt with Marquardt's scaling,
+  steps limited to half a segment) uses the exact gradient and a Hessian
+  from central differences of it, tridiagonal in the unknowns of an open
+  curve; an L-BFGS-B pass takes over where Newton stalls on a kink.
+* The number of segments doubles, three levels at least, until the length
+  changes by less than the tolerance; the value is Richardson-extrapolated
+  (error ``~ n^-2``).  The error estimate is the whole last change, at least
+  a quarter of the change before it, plus what the last round of
+  optimization still gained (a level whose optimization was cut short has
+  not reached its minimum).
+
+All the curves of a domain are refined together (:func:`refine_many`): their
+polylines are stacked into one vectorized problem, so each Newton iteration
+evaluates the metric once for every curve, and a curve that converges
+drops out while the others go on.  The arithmetic of each curve is that of
+refining it alone.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.linalg import LinAlgError, solve_banded
+from scipy.optimize import minimize
+from scipy.sparse.linalg import spsolve
+
+from .grid import Domain
+from .metric import Metric, _breaks, _vertex_params, segment_lengths
+
+__all__ = ["refine", "refine_many", "coarse_geodesic", "coarse_geodesics", "RefinedPath", "GeodesicJob"]
+
+
+
+@dataclass(frozen=True)
+class RefinedPath:
+    """A refined geodesic: its polyline, length, and convergence record.
+
+    Attributes
+    ----------
+    points : (n + 1, 2) ndarray
+        Vertices in parameter space ``(x1, x2)`` (reference arclength), unwrapped.
+    length : float
+        Richardson-extrapolated length.
+    upper : float
+        Exact length of ``points`` (a real curve: an upper bound of the distance).
+    error_estimate : float
+        ``|L_n - L_{n/2}|`` (three times the Richardson correction applied),
+        at least ``|L_{n/2} - L_{n/4}| / 4``: a level that stalls after one
+        that moved has not converged.
+    segments : int
+        Number of segments of the final level.
+    """
+
+    points: np.ndarray
+    length: float
+    upper: float
+    error_estimate: float
+    segments: int
+
+
+def _resample(poly: np.ndarray, n: int) -> np.ndarray:
+    """``n + 1`` points evenly spaced by Euclidean arclength along a polyline."""
+    seg = np.linalg.norm(np.diff(poly, axis=0), axis=1)
+    s = np.concatenate([[0.0], np.cumsum(seg)])
+    if s[-1] == 0:
+        return np.repeat(poly[:1], n + 1, axis=0)
+    u = np.linspace(0.0, s[-1], n + 1)
+    return np.column_stack([np.interp(u, s, poly[:, 0]), np.interp(u, s, poly[:, 1])])
+
+
+def _side(domain: Domain, ground: int, q: np.ndarray):
+    """The boundary line through the end point ``q`` (parameters) of ground ``ground``.
+
+    Returns ``(base, direction, (lo, hi))`` in parameters: the end slides on
+    ``base + tau direction`` with ``lo <= tau <= hi``.
+    """
+    S, V = domain.local_lengths
+    if domain.kind in ("cylinder", "annulus"):
+        v = 0.0 if ground == 0 else V
+        base = domain.to_param(np.array([[0.0, v]]))[0]
+        e = domain.basis[:, 0] / np.linalg.norm(domain.basis[:, 0])
+        return base, e, (-np.inf, np.inf)
+    _, base, direction, rng = min(_sides(domain, q), key=lambda c: c[0])
+    return base, direction, rng
+
+
+def _sides(domain: Domain, q: np.ndarray) -> list:
+    """The sides of a rectangle or triangle domain: ``(distance from q, base, direction, (lo, hi))`` each."""
+    L1, L2 = domain.lengths
+    out = [
+        (abs(q[0]), np.array([0.0, 0.0]), np.array([0.0, 1.0]), (0.0, L2)),
+        (abs(q[0] - L1), np.array([L1, 0.0]), np.array([0.0, 1.0]), (0.0, L2)),
+        (abs(q[1]), np.array([0.0, 0.0]), np.array([1.0, 0.0]), (0.0, L1)),
+        (abs(q[1] - L2), np.array([0.0, L2]), np.array([1.0, 0.0]), (0.0, L1)),
+    ]
+    if domain.kind == "triangle":
+        out.append((abs(q[1] - q[0]) / np.sqrt(2), np.array([0.0, 0.0]), np.array([1.0, 1.0]) / np.sqrt(2),
+                    (0.0, L1 * np.sqrt(2))))
+    return out
+
+
+def _segment_derivatives(metric: Metric, comps, P: np.ndarray, Q: np.ndarray, step: float,
+                         hessian: bool = True):
+    """Length, gradient (m, 4) and Hessian (m, 4, 4) of each segment in its end coordinates ``(P1, P2, Q1, Q2)``.
+
+    The gradient is exact (:func:`direct.metric.segment_lengths`); the Hessian
+    is its central difference with step ``step``, symmetrized.
+    """
+    m = len(P)
+    U = np.hstack([P, Q])
+    if not hessian:
+        f, g = segment_lengths(metric, comps, P, Q, gradient=True)
+        return f, g, None
+    st = np.broadcast_to(np.asarray(step, dtype=float), (m,))[:, None]  # one step per segment
+    E = np.eye(4)
+    Us = np.vstack([U] + [U + st * e for e in E] + [U - st * e for e in E])
+    f, g = segment_lengths(metric, comps, Us[:, :2], Us[:, 2:], gradient=True)
+    g = g.reshape(9, m, 4)
+    H = np.stack([(g[1 + k] - g[5 + k]) / (2 * st) for k in range(4)], axis=1)  # H[:, k, :] = d grad / d u_k
+    H = 0.5 * (H + H.transpose(0, 2, 1))
+    return f[:m], g[0], H
+
+
+def _project(domain: Domain, X: np.ndarray) -> np.ndarray:
+    """Put polyline vertices (parameters, unwrapped) back into the closed domain."""
+    if domain.kind == "torus":
+        return X
+    st = domain.to_local(X, wrap=False)
+    S, V = domain.local_lengths
+    ps, _ = domain.periodic
+    if not ps:
+        st[:, 0] = np.clip(st[:, 0], 0.0, S)
+    st[:, 1] = np.clip(st[:, 1], 0.0, V)
+    X = domain.to_param(st)
+    if domain.kind == "triangle":
+        low = X[:, 1] < X[:, 0]
+        X[low] = 0.5 * (X[low, 0] + X[low, 1])[:, None]
+    return X
+
+
+class _Parametrization:
+    """Vertices of a polyline as an affine function ``X = X0 + M z`` of the unknowns ``z``.
+
+    ``modes[k]`` is ``"fixed"`` (a crossing point), ``"free"`` (two unknowns),
+    or ``(base, e, lo, hi)``: the vertex slides on the line ``base + tau e``
+    with ``lo <= tau <= hi`` (one unknown): a free end on the boundary, or a
+    refraction point on a line where the metric's norm jumps.  For a closed
+    curve (``shift`` given) the last vertex is the first plus ``shift``.
+    """
+
+    def __init__(self, X: np.ndarray, modes: list, shift=None):
+        n = len(X) - 1
+        self.n = n
+        self.X0 = X.copy()
+        if shift is None and not any(isinstance(m, str) and m == "free" for m in modes):
+            self._sliding(modes)
+            return
+        rows, cols, vals = [], [], []
+        nz = 0
+        self.slides = []
+        last = n - 1 if shift is not None else n
+        first_cols = None
+        for k in range(last + 1):
+            mode = modes[k]
+            if isinstance(mode, str) and mode == "fixed":
+                continue
+            self.X0[k] = 0.0
+            if isinstance(mode, str):  # free
+                rows.extend([2 * k, 2 * k + 1])
+                cols.extend([nz, nz + 1])
+                vals.extend([1.0, 1.0])
+                entries = [(0, nz, 1.0), (1, nz + 1, 1.0)]
+                nz += 2
+            else:
+                base, e, lo, hi = mode
+                self.X0[k] = base
+                rows.extend([2 * k, 2 * k + 1])
+                cols.extend([nz, nz])
+                vals.extend([e[0], e[1]])
+                entries = [(0, nz, e[0]), (1, nz, e[1])]
+                self.slides.append((nz, lo, hi))
+                nz += 1
+            if k == 0:
+                first_cols = entries
+        if shift is not None:
+            self.X0[n] = self.X0[0] + shift
+            for axis, col, val in first_cols or []:
+                rows.append(2 * n + axis)
+                cols.append(col)
+                vals.append(val)
+        self.nv = nz
+        self._triplets = (rows, cols, vals)
+        # one unknown per vertex at most, in vertex order, open curve: the Hessian in z is tridiagonal
+        r, c, v = np.asarray(rows, dtype=int), np.asarray(cols, dtype=int), np.asarray(vals, dtype=float)
+        vert = r // 2
+        self.banded = bool(shift is None and nz > 0 and len(r) == 2 * nz and np.all(vert[0::2] == vert[1::2])
+                           and np.all(np.diff(vert[0::2]) > 0) and np.all(c[0::2] == np.arange(nz))
+                           and np.all(c[1::2] == c[0::2]))
+        if self.banded:
+            self.vertex = vert[0::2]  # vertex of each unknown
+            self.E = np.column_stack([v[0::2], v[1::2]])  # its direction (rows 2k, 2k + 1 come in pairs)
+            self._diag = (self.E * self.E).sum(axis=1)
+        else:
+            self._diag = np.asarray(self.M.multiply(self.M).sum(axis=0)).ravel()
+        arr = np.array(self.slides, dtype=float).reshape(-1, 3)
+        self._slide_idx, self._lo, self._hi = arr[:, 0].astype(int), arr[:, 1], arr[:, 2]
+
+    def _sliding(self, modes: list):
+        """The common case, built with arrays: an open curve whose vertices are fixed or slide on lines.
+
+        One unknown per moving vertex, in vertex order: the Hessian in ``z`` is tridiagonal.
+        """
+        k = np.array([i for i, m in enumerate(modes) if not isinstance(m, str)], dtype=int)
+        nz = len(k)
+        self.nv = nz
+        moving = [modes[i] for i in k]
+        if nz:
+            self.X0[k] = np.array([m[0] for m in moving], dtype=float)
+            self.E = np.array([m[1] for m in moving], dtype=float).reshape(nz, 2)
+            bounds = np.array([(m[2], m[3]) for m in moving], dtype=float).reshape(nz, 2)
+        else:
+            self.E, bounds = np.zeros((0, 2)), np.zeros((0, 2))
+        self.vertex = k
+        self._diag = (self.E * self.E).sum(axis=1)
+        self._slide_idx, self._lo, self._hi = np.arange(nz), bounds[:, 0], bounds[:, 1]
+        self.slides = list(zip(range(nz), bounds[:, 0].tolist(), bounds[:, 1].tolist()))
+        self.banded = nz > 0
+        rows = np.column_stack([2 * k, 2 * k + 1]).ravel()
+        cols = np.repeat(np.arange(nz), 2)
+        self._triplets = (rows, cols, self.E.ravel())
+
+    @cached_property
+    def M(self) -> sp.csr_matrix:
+        """The matrix of ``X = X0 + M z`` (vertices flattened as ``x1, x2`` pairs)."""
+        rows, cols, vals = self._triplets
+        return sp.csr_matrix((vals, (rows, cols)), shape=(2 * (self.n + 1), max(self.nv, 1)))
+
+    def pack(self, X: np.ndarray) -> np.ndarray:
+        """Least-squares unknowns of vertices ``X`` (exact when ``X`` is of the form ``X0 + M z``).
+
+        Each row of ``M`` has at most one entry, so ``M^T M`` is diagonal.
+        """
+        if self.nv == 0:
+            return np.zeros(0)
+        if self.banded:
+            return self.clip(((X - self.X0)[self.vertex] * self.E).sum(axis=1) / self._diag)
+        return self.clip((self.M.T @ (X - self.X0).ravel()) / self._diag)
+
+    def clip(self, z):
+        """Keep sliding vertices within their stretch of line."""
+        z[self._slide_idx] = np.clip(z[self._slide_idx], self._lo, self._hi)
+        return z
+
+    def unpack(self, z: np.ndarray) -> np.ndarray:
+        if self.banded:
+            X = self.X0.copy()
+            X[self.vertex] += z[:, None] * self.E
+            return X
+        return self.X0 + (self.M @ z).reshape(-1, 2)
+
+
+def _normal_modes(X: np.ndarray, modes: list, closed: bool) -> list:
+    """Let each free vertex move only across the polyline, along its normal.
+
+    Moving vertices along a geodesic barely changes its length (not at all
+    where it is straight), so with both coordinates free the Hessian is
+    nearly singular and Newton creeps; the normal offsets alone are well
+    conditioned.  The spacing of the vertices stays that of the resampled
+    route and its midpoint refinements, the family Richardson extrapolation
+    assumes.
+    """
+    if closed:
+        prev = np.roll(X[:-1], 1, axis=0)
+        nxt = np.roll(X[:-1], -1, axis=0)
+        prev[0] = X[-2] - (X[-1] - X[0])
+        tangent = np.vstack([nxt - prev, [[0.0, 0.0]]])
+    else:
+        tangent = np.zeros_like(X)
+        tangent[1:-1] = X[2:] - X[:-2]
+    norm = np.hypot(tangent[:, 0], tangent[:, 1])
+    safe = np.where(norm > 0, norm, 1.0)
+    normal = np.where((norm > 0)[:, None], np.column_stack([-tangent[:, 1], tangent[:, 0]]) / safe[:, None],
+                      np.array([1.0, 0.0]))
+    inf = np.inf
+    return [(X[k].copy(), normal[k], -inf, inf) if isinstance(m, str) and m == "free" else m
+            for k, m in enumerate(modes)]
+
+
+def _on_ground(domain: Domain, ground: int, X: np.ndarray) -> np.ndarray:
+    """Whether each vertex lies on boundary part ``ground`` (to rounding)."""
+    st = domain.to_local(X, wrap=False)
+    S, V = domain.local_lengths
+    eps = 1e-12 * max(S, V)
+    if domain.kind in ("cylinder", "annulus"):
+        return np.abs(st[:, 1] - (0.0 if ground == 0 else V)) <= eps
+    on = (np.abs(st[:, 1]) <= eps) | (np.abs(st[:, 1] - V) <= eps)
+    on |= (np.abs(st[:, 0]) <= eps) | (np.abs(st[:, 0] - S) <= eps)
+    if domain.kind == "triangle":
+        on |= np.abs(X[:, 1] - X[:, 0]) <= eps
+    return on
+
+
+def _grade_ends(domain: Domain, X: np.ndarray, modes: list, start_ground, end_ground, scale: float):
+    """Free vertices at ``1/2, 1/4, 1/8, ...`` of the segment next to an end that slides on the boundary.
+
+    A geodesic may bend sharply just before it reaches the boundary: a grazing
+    crossing's narrow valley runs into a corner and the curve turns onto a
+    side within a distance of the order of the angle.  Uniform doubling
+    would need thousands of segments to see the turn; a geometric grading
+    sees it with a dozen vertices (down to ``1e-6`` of the domain).
+    """
+    for at_start, ground in ((True, start_ground), (False, end_ground)):
+        if ground is None or len(X) < 2:
+            continue
+        end, nb = (X[0], X[1]) if at_start else (X[-1], X[-2])
+        length = float(np.linalg.norm(nb - end))
+        depth = int(np.clip(np.floor(np.log2(max(length, 1e-300) / (1e-6 * scale))), 0, 14))
+        if depth < 2:
+            continue
+        frac = 0.5 ** np.arange(1, depth + 1)  # distance from the end, as a fraction of the segment
+        pts = end[None, :] + frac[:, None] * (nb - end)[None, :]
+        if at_start:
+            X = np.vstack([X[:1], pts[::-1], X[1:]])
+            modes = [modes[0]] + ["free"] * depth + list(modes[1:])
+        else:
+            X = np.vstack([X[:-1], pts, X[-1:]])
+            modes = list(modes[:-1]) + ["free"] * depth + [modes[-1]]
+    return X, modes
+
+
+def _corner_switch(domain: Domain, metric: Metric, X: np.ndarray, modes: list, k: int) -> list:
+    """Let an end held at a corner of the boundary slide on the other side if that is cheaper.
+
+    An end slides on one side of a rectangle or triangle; the optimizer
+    stops it at the corner where that side ends, even when the geodesic
+    wants to go on along the other side (a grazing crossing, whose narrow
+    valley runs into the corner).  Try a small step along every side through
+    that corner and keep the side of the cheapest.
+    """
+    mode = modes[k]
+    if isinstance(mode, str) or domain.kind in ("cylinder", "annulus", "torus"):
+        return modes
+    q = X[k]
+    tiny = 1e-12 * max(domain.lengths)
+    through = [sd for sd in _sides(domain, q) if sd[0] <= tiny]
+    if len(through) < 2:
+        return modes
+    nb = X[k - 1] if k > 0 else X[1]
+    step = 1e-3 * float(np.linalg.norm(q - nb))
+
+    def cost(p):
+        return float(segment_lengths(metric, domain.comps, nb[None, :], p[None, :])[0])
+
+    best, best_mode = cost(q), mode
+    for _, base, e, (lo, hi) in through:
+        tau = float((q - base) @ e)
+        for sgn in (1.0, -1.0):
+            t = tau + sgn * step
+            if lo <= t <= hi:
+                c = cost(base + t * e)
+                if c < best:
+                    best, best_mode = c, (base, e, lo, hi)
+    if best_mode is mode:
+        return modes
+    out = list(modes)
+    out[k] = best_mode
+    return out
+
+
+def _truncate_at_boundary(domain: Domain, ground: int, X: np.ndarray, modes: list) -> tuple[np.ndarray, list]:
+    """End a curve bound for the boundary where it first reaches it.
+
+    The rest of the polyline runs on or back from the boundary, where the
+    curve could have stopped at no cost (eq. (9) lets it end anywhere there);
+    cutting it only shortens it and frees the optimizer, which cannot move
+    vertices held on the boundary by the projection.
+    """
+    on = _on_ground(domain, ground, X)
+    on[0] = False
+    hit = np.flatnonzero(on)
+    if hit.size == 0 or hit[0] == len(X) - 1:
+        return X, modes
+    k = int(hit[0])
+    X = X[: k + 1].copy()
+    base, e, (lo, hi) = _side(domain, ground, X[k])
+    modes = list(modes[:k]) + [(base, e, lo, hi)]
+    return X, modes
+
+
+def _resampled_with_ends(domain: Domain, route: np.ndarray, n: int, start_ground, end_ground, closed: bool):
+    """``n`` segments evenly along the route; ends fixed (crossing points) or sliding on their boundary."""
+    X = _resample(route, n)
+    modes: list = ["free"] * (n + 1)
+    if not closed:
+        for k, ground in ((0, start_ground), (n, end_ground)):
+            if ground is None:
+                modes[k] = "fixed"
+            else:
+                base, e, (lo, hi) = _side(domain, ground, X[k])
+                modes[k] = (base, e, lo, hi)
+    return X, modes
+
+
+def _initial_polyline(domain: Domain, route: np.ndarray, start: int, start_ground, end_ground, closed: bool):
+    """First polyline of the refinement: the route's ends and its crossings with the cell lines.
+
+    Each segment then lies in one cell, where the length is a smooth function
+    of its ends.  Where the route crosses fewer than ``start`` lines, its
+    evenly resampled points fill in (free vertices).
+    """
+    X, modes = _resampled_with_ends(domain, route, start, start_ground, end_ground, closed)
+    smooth = _resample(route, 4 * start)  # the grid route zigzags at the scale of the grid: smooth it first
+    Y, ymodes = _insert_breaks(domain, smooth, ["free"] * len(smooth))
+    lines = [k for k, m in enumerate(ymodes) if not isinstance(m, str)]
+    if len(lines) + 1 < start:
+        return _insert_breaks(domain, X, modes)
+    keep = [0] + lines + [len(Y) - 1]
+    X = Y[keep]
+    modes = [modes[0]] + [ymodes[k] for k in lines] + [modes[-1]]
+    if closed:
+        modes[0] = modes[-1] = "free"
+    return X, modes
+
+
+def _prune_breaks(X: np.ndarray, modes: list) -> tuple[np.ndarray, list]:
+    """Drop refraction vertices whose neighbours are on the same side of their line.
+
+    Such a vertex only touches the line: the curve no longer crosses it there,
+    and holding a vertex on it would keep the curve in a sequence of cells it
+    has left.  :func:`_insert_breaks` adds back the crossings that remain.
+    """
+    keep = np.ones(len(X), dtype=bool)
+    for k in range(1, len(X) - 1):
+        mode = modes[k]
+        if isinstance(mode, str) or mode[1][0] * mode[1][1] != 0:
+            continue
+        axis = 0 if mode[1][0] == 0.0 else 1  # the coordinate that is constant on the line
+        c = X[k, axis]
+        if (X[k - 1, axis] - c) * (X[k + 1, axis] - c) >= 0:
+            keep[k] = False
+    if keep.all():
+        return X, modes
+    return X[keep], [m for m, kk in zip(modes, keep) if kk]
+
+
+def _insert_breaks(domain: Domain, X: np.ndarray, modes: list) -> tuple[np.ndarray, list]:
+    """Add a sliding vertex where the polyline crosses a vertex parameter of either component.
+
+    There the metric's norm jumps and the geodesic refracts; with a vertex on
+    the line, every segment stays in one cell, where the length is smooth.
+    """
+    P, Q = X[:-1], X[1:]
+    new_t, new_seg, new_axis = [], [], []
+    for axis, comp in enumerate(domain.comps):
+        u0, u1 = P[:, axis], Q[:, axis]
+        vp = _vertex_params(comp, float(min(u0.min(), u1.min())), float(max(u0.max(), u1.max())))
+        seg, t = _breaks(vp, u0, u1)
+        keep = (t > 1e-9) & (t < 1 - 1e-9)
+        new_t.append(t[keep])
+        new_seg.append(seg[keep])
+        new_axis.append(np.full(keep.sum(), axis))
+    t = np.concatenate(new_t)
+    if t.size == 0:
+        return X, modes
+    seg = np.concatenate(new_seg)
+    axis = np.concatenate(new_axis)
+    order = np.lexsort((t, seg))
+    t, seg, axis = t[order], seg[order], axis[order]
+    # one vertex per crossing point (a cell corner is crossed by two lines at once)
+    dup = np.zeros(len(t), dtype=bool)
+    dup[1:] = (seg[1:] == seg[:-1]) & (t[1:] - t[:-1] < 1e-9)
+    t, seg, axis = t[~dup], seg[~dup], axis[~dup]
+    pts = P[seg] + t[:, None] * (Q[seg] - P[seg])
+    out_X, out_modes = [], []
+    j = 0
+    for k in range(len(X)):
+        out_X.append(X[k])
+        out_modes.append(modes[k])
+        while j < len(seg) and seg[j] == k:
+            e = np.array([0.0, 1.0]) if axis[j] == 0 else np.array([1.0, 0.0])
+            base = pts[j] * (1 - e)
+            out_X.append(pts[j])
+            out_modes.append((base, e, -np.inf, np.inf))
+            j += 1
+    return np.array(out_X), out_modes
+
+
+def _newton(par, unpack, length, assemble, z, scale, max_iter, rtol=1e-11):
+    """Damped Newton (Levenberg-Marquardt) with backtracking: ``(X, converged)``.
+
+    Converged when the Newton decrement (the model's decrease, about twice the
+    length still to gain) is at most ``rtol`` times the length.
+
+    ``assemble(X)`` returns the length, its gradient and its Hessian in the
+    unknowns: a sparse matrix, or ``(diag, off)`` for a tridiagonal one.
+    """
+    X = unpack(z)
+    f, grad, H = assemble(X)
+    lam = 1e-8
+    eye = None if isinstance(H, tuple) else sp.identity(par.nv, format="csc")
+    for _ in range(max_iter):
+        if isinstance(H, tuple):
+            diag, off = H
+            damp = np.maximum(np.abs(diag), 1e-12 * max(float(np.abs(diag).max()), 1e-300))  # Marquardt scaling
+            ab = np.zeros((3, len(diag)))
+            ab[0, 1:], ab[1], ab[2, :-1] = off, diag + lam * damp, off
+            try:
+                dz = solve_banded((1, 1), ab, -grad, check_finite=False)
+            except (LinAlgError, ValueError):
+                dz = np.full_like(grad, np.nan)
+        else:
+            hscale = max(float(np.abs(H.diagonal()).max()), 1e-300)
+            dz = spsolve(H + lam * hscale * eye, -grad)
+        decrease = -float(dz @ grad)
+        if not np.all(np.isfinite(dz)) or decrease <= 0:
+            lam = max(lam * 100, 1e-6)
+            if lam > 1e8:
+                return X, False
+            continue
+        if decrease <= rtol * f:
+            return X, True
+        t, accepted = 1.0, False
+        if par.banded:  # no vertex moves more than half its shorter segment in one step: the curve keeps its shape
+            seg = np.linalg.norm(np.diff(X, axis=0), axis=1)
+            room = np.minimum(seg[np.maximum(par.vertex - 1, 0)], seg[np.minimum(par.vertex, len(seg) - 1)])
+            room = np.maximum(room, 0.25 * float(np.mean(seg)))  # a vertex beside a tiny segment may still move
+            move = np.abs(dz) * np.sqrt(par._diag)
+            worst = float(np.max(move / np.maximum(room, 1e-300)))
+            t = min(1.0, 0.5 / worst) if worst > 0 else 1.0
+        for _ls in range(12):
+            X_new = unpack(par.clip(z + t * dz))
+            f_new = length(X_new)
+            if f_new <= f:
+                accepted = True
+                break
+            t *= 0.5
+        if not accepted:
+            lam *= 100
+            if lam > 1e8:
+                return X, False
+            continue
+        z = par.pack(X_new)
+        stalled = f - f_new <= 1e-13 * f and decrease <= 1e-8 * f  # converged to rounding
+        X, f = X_new, f_new
+        if stalled:
+            return X, True
+        lam = max(lam / 10, 1e-12)
+        f, grad, H = assemble(X)
+    return X, False
+
+
+
+
+def _lbfgs_polish(domain: Domain, metric: Metric, par: _Parametrization, X: np.ndarray, scale: float) -> np.ndarray:
+    """Quasi-Newton (L-BFGS-B) on the exact gradient from ``X``: robust where the length has kinks."""
+    comps = domain.comps
+    n = par.n
+    k = np.arange(n)
+    loc = np.column_stack([2 * k, 2 * k + 1, 2 * k + 2, 2 * k + 3])
+
+    def unpack(z):
+        return _project(domain, par.unpack(z))
+
+    z = par.pack(X)
+    f0 = max(float(segment_lengths(metric, comps, X[:-1], X[1:]).sum()), 1e-300)
+
+    def fun(zz):
+        XX = unpack(par.clip(zz.copy()))
+        fl, gl, _ = _segment_derivatives(metric, comps, XX[:-1], XX[1:], 1e-6 * scale, hessian=False)
+        gX = np.bincount(loc.ravel(), weights=gl.ravel(), minlength=2 * (n + 1))
+        return float(fl.sum()) / f0, (par.M.T @ gX) / f0
+
+    wide = 10.0 * scale
+    bounds = [(float(zk) - wide, float(zk) + wide) for zk in z]
+    for kk, lo, hi in par.slides:
+        bounds[kk] = (max(lo, bounds[kk][0]), min(hi, bounds[kk][1]))
+    res = minimize(fun, z, jac=True, method="L-BFGS-B", bounds=bounds,
+                   options={"maxiter": 100, "ftol": 1e-12, "gtol": 1e-14, "maxcor": 30})
+    return unpack(par.clip(res.x))
+
+
+def _optimize_level(domain: Domain, metric: Metric, X0: np.ndarray, modes: list, shift, scale: float,
+                    max_iter: int = 20, polish: bool = True) -> tuple[np.ndarray, bool]:
+    """Minimize the exact length of one polyline over its free coordinates: ``(X, converged)``.
+
+    The general (sparse) form, for closed curves and any parametrization;
+    open curves go through :func:`_optimize_many`, which stacks them.
+    Damped Newton (Levenberg-Marquardt with Marquardt's diagonal scaling) with
+    a backtracking line search; where it stalls (lengths that are not smooth,
+    such as the degenerate norm of the euclid metric) an L-BFGS-B polish takes
+    over, unless ``polish`` is False (the coarse pass, which only needs the
+    shape of the curve).
+    """
+    comps = domain.comps
+    par = _Parametrization(X0, modes, shift)
+    if par.nv == 0:
+        return X0, True
+    n = par.n
+    step = 1e-6 * scale
+    k = np.arange(n)
+    loc = np.column_stack([2 * k, 2 * k + 1, 2 * k + 2, 2 * k + 3])
+
+    def unpack(z):
+        return _project(domain, par.unpack(z))
+
+    def length(X):
+        return float(segment_lengths(metric, comps, X[:-1], X[1:]).sum())
+
+    def assemble(X):
+        seg = np.linalg.norm(X[1:] - X[:-1], axis=1)
+        steps = np.minimum(step, np.maximum(1e-3 * seg, 1e-9 * scale))  # short segments get short steps
+        f, gl, Hl = _segment_derivatives(metric, comps, X[:-1], X[1:], steps)
+        gX = np.bincount(loc.ravel(), weights=gl.ravel(), minlength=2 * (n + 1))
+        r = np.repeat(loc, 4, axis=1).ravel()
+        c = np.tile(loc, (1, 4)).ravel()
+        HX = sp.csr_matrix((Hl.ravel(), (r, c)), shape=(2 * (n + 1), 2 * (n + 1)))
+        M, Mt = par.M, par.M.T.tocsr()
+        return float(f.sum()), Mt @ gX, (Mt @ HX @ M).tocsc()
+
+    z = par.pack(X0)
+    X, converged = _newton(par, unpack, length, assemble, z, scale, max_iter, rtol=1e-11 if polish else 1e-7)
+    if converged or not polish:
+        return X, converged
+    return _lbfgs_polish(domain, metric, par, X, scale), False
+
+
+class _Stack:
+    """Open polylines with banded parametrizations (one unknown per vertex) stacked into one system.
+
+    Vertices, segments and unknowns of all curves are concatenated; every
+    quantity of a curve is a slice, and per-curve sums are ``bincount``s.
+    The Hessian of the total length is block tridiagonal, one block per curve.
+    """
+
+    def __init__(self, domain: Domain, metric: Metric, pars: list[_Parametrization], scale: float):
+        self.domain, self.metric, self.scale = domain, metric, scale
+        C = len(pars)
+        self.C = C
+        nv = np.array([p.n + 1 for p in pars])
+        ns = nv - 1
+        nu = np.array([p.nv for p in pars])
+        self.voff = np.concatenate([[0], np.cumsum(nv)])
+        soff = np.concatenate([[0], np.cumsum(ns)])
+        uoff = np.concatenate([[0], np.cumsum(nu)])
+        self.v_curve = np.repeat(np.arange(C), nv)
+        self.s_curve = np.repeat(np.arange(C), ns)
+        self.u_curve = np.repeat(np.arange(C), nu)
+        self.n_seg = ns
+        # segment k of curve c joins vertices voff[c] + k and voff[c] + k + 1
+        self.seg_p = np.arange(soff[-1]) - soff[:-1][self.s_curve] + self.voff[:-1][self.s_curve]
+        self.X0 = np.vstack([p.X0 for p in pars])
+        local = np.concatenate([p.vertex for p in pars])
+        self.u_vertex = local + self.voff[:-1][self.u_curve]
+        self.E = np.vstack([p.E for p in pars])
+        self.ediag = np.concatenate([p._diag for p in pars])
+        self.lo = np.full(uoff[-1], -np.inf)
+        self.hi = np.full(uoff[-1], np.inf)
+        for c, p in enumerate(pars):
+            self.lo[uoff[c] + p._slide_idx] = p._lo
+            self.hi[uoff[c] + p._slide_idx] = p._hi
+        # the segments before and after each unknown's vertex (clamped at the ends of its curve)
+        self.u_prev = soff[:-1][self.u_curve] + np.maximum(local - 1, 0)
+        self.u_next = soff[:-1][self.u_curve] + np.minimum(local, ns[self.u_curve] - 1)
+        # the Hessian couples unknowns k and k + 1 when they sit on adjacent vertices of one curve
+        self.adjacent = (np.diff(self.u_vertex) == 1) & (self.u_curve[1:] == self.u_curve[:-1])
+        self.Ev = np.zeros((len(self.X0), 2))
+        self.Ev[self.u_vertex] = self.E
+
+    def clip(self, z):
+        return np.clip(z, self.lo, self.hi)
+
+    def pack(self, X):
+        return self.clip(((X - self.X0)[self.u_vertex] * self.E).sum(axis=1) / self.ediag)
+
+    def unpack(self, z):
+        X = self.X0.copy()
+        X[self.u_vertex] += z[:, None] * self.E
+        return _project(self.domain, X)
+
+    def _segments(self, X, curves):
+        s = np.flatnonzero(curves[self.s_curve])
+        p = self.seg_p[s]
+        return s, X[p], X[p + 1]
+
+    def lengths(self, X, curves):
+        """Length of each selected curve (zeros elsewhere)."""
+        s, P, Q = self._segments(X, curves)
+        f = segment_lengths(self.metric, self.domain.comps, P, Q)
+        return np.bincount(self.s_curve[s], weights=f, minlength=self.C)
+
+    def assemble(self, X, curves):
+        """Lengths, gradients, and the tridiagonal Hessian ``(diag, off)`` in the unknowns of the selected curves."""
+        s, P, Q = self._segments(X, curves)
+        seg = np.linalg.norm(Q - P, axis=1)
+        steps = np.minimum(1e-6 * self.scale, np.maximum(1e-3 * seg, 1e-9 * self.scale))  # short segments, short steps
+        f, gl, Hl = _segment_derivatives(self.metric, self.domain.comps, P, Q, steps)
+        p = self.seg_p[s]
+        Ep, Eq = self.Ev[p], self.Ev[p + 1]
+        gV = np.zeros_like(X)
+        gV[p] += gl[:, :2]
+        gV[p + 1] += gl[:, 2:]  # a vertex ends one segment and starts the next: two separate sums
+        dV = np.zeros(len(X))
+        dV[p] += np.einsum("ki,kij,kj->k", Ep, Hl[:, :2, :2], Ep)
+        dV[p + 1] += np.einsum("ki,kij,kj->k", Eq, Hl[:, 2:, 2:], Eq)
+        oV = np.zeros(len(X))
+        oV[p] = np.einsum("ki,kij,kj->k", Ep, Hl[:, :2, 2:], Eq)  # vertex k with vertex k + 1
+        uv = self.u_vertex
+        grad = (gV[uv] * self.E).sum(axis=1)
+        off = np.where(self.adjacent, oV[uv[:-1]], 0.0)
+        return np.bincount(self.s_curve[s], weights=f, minlength=self.C), grad, dV[uv], off
+
+    def step_limits(self, X, dz, curves):
+        """Largest step fraction per curve that moves no vertex more than half its shorter segment."""
+        seg = np.linalg.norm(X[self.seg_p + 1] - X[self.seg_p], axis=1)
+        mean = np.bincount(self.s_curve, weights=seg, minlength=self.C) / np.maximum(self.n_seg, 1)
+        room = np.minimum(seg[self.u_prev], seg[self.u_next])
+        room = np.maximum(room, 0.25 * mean[self.u_curve])  # a vertex beside a tiny segment may still move
+        ratio = np.abs(dz) * np.sqrt(self.ediag) / np.maximum(room, 1e-300)
+        worst = np.zeros(self.C)
+        on = curves[self.u_curve]
+        np.maximum.at(worst, self.u_curve[on], ratio[on])
+        return np.where(worst > 0, np.minimum(1.0, 0.5 / np.where(worst > 0, worst, 1.0)), 1.0)
+
+
+def _solve_tridiagonal(stack: _Stack, diag, off, rhs, active_u):
+    """Solve the block tridiagonal system on the active unknowns; NaN for a curve whose block is singular."""
+    idx = np.flatnonzero(active_u)
+    dz = np.zeros(len(rhs))
+    if idx.size == 0:
+        return dz
+    o = np.where(idx[1:] == idx[:-1] + 1, off[idx[:-1]], 0.0)
+    ab = np.zeros((3, idx.size))
+    ab[0, 1:], ab[1], ab[2, :-1] = o, diag[idx], o
+    try:
+        dz[idx] = solve_banded((1, 1), ab, rhs[idx], check_finite=False)
+        return dz
+    except (LinAlgError, ValueError):
+        pass
+    # one block is singular: solve curve by curve (the blocks are independent)
+    for c in np.unique(stack.u_curve[idx]):
+        k = idx[stack.u_curve[idx] == c]
+        ok = np.where(k[1:] == k[:-1] + 1, off[k[:-1]], 0.0)
+        ab = np.zeros((3, k.size))
+        ab[0, 1:], ab[1], ab[2, :-1] = ok, diag[k], ok
+        try:
+            dz[k] = solve_banded((1, 1), ab, rhs[k], check_finite=False)
+        except (LinAlgError, ValueError):
+            dz[k] = np.nan
+    return dz
+
+
+def _newton_many(stack: _Stack, X_start: np.ndarray, max_iter: int, rtol: float):
+    """Damped Newton (Levenberg-Marquardt) with backtracking on every curve of a stack at once.
+
+    Each curve follows the rules of :func:`_newton` with its own damping,
+    step and line search; a curve leaves when it converges (Newton decrement
+    at most ``rtol`` times its length, or no progress above rounding) or
+    fails, and the iterations go on for the others.
+
+    Returns
+    -------
+    X : (n_vertices, 2) ndarray
+        The stacked vertices.
+    converged : (C,) ndarray of bool
+    """
+    C = stack.C
+    u_curve, v_curve = stack.u_curve, stack.v_curve
+    z = stack.pack(X_start)
+    X = stack.unpack(z)
+    everyone = np.ones(C, dtype=bool)
+    f, G, D, off = stack.assemble(X, everyone)
+    lam = np.full(C, 1e-8)
+    done = np.zeros(C, dtype=bool)
+    conv = np.zeros(C, dtype=bool)
+    for _ in range(max_iter):
+        act = ~done
+        if not act.any():
+            break
+        absD = np.abs(D)
+        dmax = np.zeros(C)
+        np.maximum.at(dmax, u_curve, absD)
+        damp = np.maximum(absD, 1e-12 * np.maximum(dmax, 1e-300)[u_curve])  # Marquardt scaling
+        dz = _solve_tridiagonal(stack, D + lam[u_curve] * damp, off, -G, act[u_curve])
+        finite = np.isfinite(dz)
+        bad_u = np.bincount(u_curve, weights=(~finite).astype(float), minlength=C) > 0
+        dec = -np.bincount(u_curve, weights=np.where(finite, dz * G, 0.0), minlength=C)
+        bad = act & (bad_u | (dec <= 0))
+        lam[bad] = np.maximum(lam[bad] * 100, 1e-6)
+        done |= bad & (lam > 1e8)
+        cv = act & ~bad & (dec <= rtol * f)
+        done |= cv
+        conv |= cv
+        stepping = act & ~bad & ~cv
+        if not stepping.any():
+            continue
+        dz = np.where(finite, dz, 0.0)
+        t = stack.step_limits(X, dz, stepping)
+        searching = stepping.copy()
+        accepted = np.zeros(C, dtype=bool)
+        X_new, f_new = X.copy(), f.copy()
+        for _ls in range(12):
+            su = searching[u_curve]
+            zt = z.copy()
+            zt[su] = z[su] + t[u_curve[su]] * dz[su]
+            Xt = stack.unpack(stack.clip(zt))
+            ft = stack.lengths(Xt, searching)
+            ok = searching & (ft <= f)
+            if ok.any():
+                sv = ok[v_curve]
+                X_new[sv] = Xt[sv]
+                f_new[ok] = ft[ok]
+                accepted |= ok
+            searching &= ~ok
+            if not searching.any():
+                break
+            t[searching] *= 0.5
+        failed = stepping & ~accepted
+        lam[failed] *= 100
+        done |= failed & (lam > 1e8)
+        if not accepted.any():
+            continue
+        sv, su = accepted[v_curve], accepted[u_curve]
+        z[su] = stack.pack(X_new)[su]
+        stalled = accepted & (f - f_new <= 1e-13 * f) & (dec <= 1e-8 * f)  # converged to rounding
+        X[sv] = X_new[sv]
+        f[accepted] = f_new[accepted]
+        done |= stalled
+        conv |= stalled
+        moved = accepted & ~stalled
+        lam[moved] = np.maximum(lam[moved] / 10, 1e-12)
+        if moved.any():
+            f2, G2, D2, off2 = stack.assemble(X, moved)
+            mu = moved[u_curve]
+            f[moved], G[mu], D[mu] = f2[moved], G2[mu], D2[mu]
+            off[mu[:-1]] = off2[mu[:-1]]
+    return X, conv
+
+
+def _optimize_many(domain: Domain, metric: Metric, items: list, scale: float, max_iter: int = 20,
+                   polish: bool = True) -> list[tuple[np.ndarray, bool]]:
+    """Minimize the exact lengths of several polylines over their free coordinates: ``[(X, converged), ...]``.
+
+    ``items`` lists ``(X0, modes, shift)`` (see :class:`_Parametrization`).
+    Open curves with one unknown per vertex (every curve but closed ones)
+    are stacked and solved together by :func:`_newton_many`; the others go
+    one by one through :func:`_optimize_level`.  Curves that Newton leaves
+    unconverged get an L-BFGS-B polish, unless ``polish`` is False (the
+    coarse pass, which only needs the shape of the curves).
+    """
+    out: list = [None] * len(items)
+    stacked, pars = [], []
+    for i, (X0, modes, shift) in enumerate(items):
+        par = _Parametrization(X0, modes, shift)
+        if par.nv == 0:
+            out[i] = (X0, True)
+        elif par.banded:
+            stacked.append(i)
+            pars.append(par)
+        else:
+            out[i] = _optimize_level(domain, metric, X0, modes, shift, scale, max_iter=max_iter, polish=polish)
+    if stacked:
+        stack = _Stack(domain, metric, pars, scale)
+        X, conv = _newton_many(stack, np.vstack([items[i][0] for i in stacked]), max_iter,
+                               rtol=1e-11 if polish else 1e-7)
+        for c, (i, par) in enumerate(zip(stacked, pars)):
+            Xc = X[stack.voff[c]:stack.voff[c + 1]].copy()
+            if not conv[c] and polish:
+                Xc = _lbfgs_polish(domain, metric, par, Xc, scale)
+            out[i] = (Xc, bool(conv[c]))
+    return out
+
+
+def _lengths(domain: Domain, metric: Metric, polylines: list[np.ndarray]) -> np.ndarray:
+    """Exact lengths of several polylines, in one evaluation of the metric."""
+    if not polylines:
+        return np.empty(0)
+    sizes = [len(X) - 1 for X in polylines]
+    P = np.vstack([X[:-1] for X in polylines])
+    Q = np.vstack([X[1:] for X in polylines])
+    f = segment_lengths(metric, domain.comps, P, Q)
+    return np.bincount(np.repeat(np.arange(len(polylines)), sizes), weights=f, minlength=len(polylines))
+
+
+@dataclass(frozen=True)
+class GeodesicJob:
+    """One curve to refine: a grid route and how its ends are held.
+
+    Attributes
+    ----------
+    route : (k, 2) ndarray
+        Grid route in parameters (unwrapped across seams).
+    start_ground, end_ground : int, optional
+        Ground (boundary part) on which the first / last point slides: a
+        curve ``gamma`` ending freely on the boundary or the diagonal
+        (eq. (9)).  ``None``: the end is a fixed crossing point.
+    closed : bool, default False
+        A closed curve (section 3.3.4): ``route[-1] - route[0]`` is a period
+        shift and every vertex is free.
+    """
+
+    route: np.ndarray
+    start_ground: int | None = None
+    end_ground: int | None = None
+    closed: bool = False
+
+    @property
+    def shift(self):
+        """The period shift of a closed curve (parameters), else None."""
+        return np.asarray(self.route[-1] - self.route[0], dtype=float) if self.closed else None
+
+
+def coarse_geodesics(domain: Domain, metric: Metric, jobs: list[GeodesicJob], n: int = 16,
+                     rounds: int = 3) -> list[tuple[np.ndarray, float]]:
+    """Straighten grid routes at a coarse scale: ``n`` segments, each across many cells.
+
+    The first stage of :func:`refine_many`.  At that scale the kinks of the length (where segments cross vertex
+    lines) are small ripples, so the large-scale shape of each geodesic
+    settles quickly; the fine levels then only adjust it locally.  Cheap,
+    and enough to rank routes that lead to different local geodesics.
+
+    Returns
+    -------
+    list of (polyline, length)
+        Each coarse geodesic (parameters) and its exact length.
+    """
+    scale = float(max(domain.lengths))
+    state = [_resampled_with_ends(domain, np.asarray(j.route, dtype=float), n, j.start_ground, j.end_ground,
+                                  j.closed) for j in jobs]
+    for _ in range(rounds):
+        outs = _optimize_many(domain, metric, [(X, _normal_modes(X, modes, j.closed), j.shift)
+                                               for (X, modes), j in zip(state, jobs)],
+                              scale, max_iter=20, polish=False)
+        new = []
+        for (X, _), (_, modes), j in zip(outs, state, jobs):
+            if j.end_ground is not None:
+                X, modes = _truncate_at_boundary(domain, j.end_ground, X, modes)
+            new.append((X, modes))
+        state = new
+    Xs = [X for X, _ in state]
+    return list(zip(Xs, _lengths(domain, metric, Xs).tolist()))
+
+
+def coarse_geodesic(
+    domain: Domain, metric: Metric, route: np.ndarray, end_ground: int | None = None
+) -> tuple[np.ndarray, float]:
+    """The coarse geodesic near one route (see :func:`coarse_geodesics`) and its exact length."""
+    return coarse_geodesics(domain, metric, [GeodesicJob(np.asarray(route, dtype=float), end_ground=end_ground)])[0]
+
+
+class _Curve:
+    """The state of one curve during :func:`refine_many`."""
+
+    def __init__(self, job: GeodesicJob, X, modes):
+        self.job, self.X, self.modes = job, X, modes
+        self.history: list[float] = []
+        self.result: RefinedPath | None = None
+
+
+def refine_many(
+    domain: Domain,
+    metric: Metric,
+    jobs: list[GeodesicJob],
+    tol: float = 1e-3,
+    atol: float = 0.0,
+    start: int = 8,
+    max_segments: int = 512,
+    max_rounds: int = 8,
+) -> list[RefinedPath]:
+    """Refine grid routes into geodesics: minimize their exact lengths, multilevel, all curves together.
+
+    Parameters
+    ----------
+    domain : Domain
+        The pair domain.
+    metric : Metric
+        The metric on M x M.
+    jobs : list of GeodesicJob
+        The routes and how their ends are held.
+    tol : float, default 1e-3
+        Relative tolerance of each length.
+    atol : float, default 0
+        Absolute tolerance: a curve much shorter than the others needs no
+        relative accuracy of its own.
+    start, max_segments : int
+        First and largest number of segments.
+    max_rounds : int
+        Rounds of normal moves per level (the normals recomputed each time);
+        a level stops earlier when a round gains less than ``tol / 100``.
+
+    Returns
+    -------
+    list of RefinedPath
+        One per job, in order.  ``length`` is Richardson-extrapolated;
+        ``error_estimate`` is the whole last change between levels, at least
+        a quarter of the change before it, plus what the last round of
+        optimization still gained.
+    """
+    scale = float(max(domain.lengths))
+    jobs = list(jobs)
+    routes = [X for X, _ in coarse_geodesics(domain, metric, jobs)]
+    curves = []
+    for job, route in zip(jobs, routes):
+        X, modes = _initial_polyline(domain, route, start, job.start_ground, job.end_ground, job.closed)
+        curves.append(_Curve(job, X, modes))
+    live = list(curves)
+    n = start
+    while live:
+        for c in live:
+            if not c.job.closed:
+                c.X, c.modes = _grade_ends(domain, c.X, c.modes, c.job.start_ground, c.job.end_ground, scale)
+        L_prev = dict(zip(map(id, live), _lengths(domain, metric, [c.X for c in live])))
+        gain: dict[int, float] = {}
+        L_last: dict[int, float] = {}
+        todo = list(live)
+        # rounds of normal moves, the normals recomputed each time, until the length settles:
+        # one round cannot carry a vertex past the centre of curvature of the polyline
+        for _round in range(max_rounds):
+            outs = _optimize_many(domain, metric, [(c.X, _normal_modes(c.X, c.modes, c.job.closed), c.job.shift)
+                                                   for c in todo], scale)
+            for c, (X, _) in zip(todo, outs):
+                X, modes = _insert_breaks(domain, *_prune_breaks(X, c.modes))
+                if c.job.end_ground is not None:
+                    X, modes = _truncate_at_boundary(domain, c.job.end_ground, X, modes)
+                    modes = _corner_switch(domain, metric, X, modes, len(X) - 1)
+                if c.job.start_ground is not None:
+                    modes = _corner_switch(domain, metric, X, modes, 0)
+                c.X, c.modes = X, modes
+            L_new = _lengths(domain, metric, [c.X for c in todo])
+            more = []
+            for c, L in zip(todo, L_new):
+                gain[id(c)] = max(L_prev[id(c)] - L, 0.0)
+                L_last[id(c)] = L
+                if L_prev[id(c)] - L > 1e-2 * tol * L:
+                    L_prev[id(c)] = L
+                    more.append(c)
+            todo = more
+            if not todo:
+                break
+        nxt = []
+        for c in live:
+            Ln = L_last[id(c)]  # the length of the last round's polyline
+            c.history.append(Ln)
+            h = c.history
+            if len(h) >= 2:
+                # Richardson: with an error ~ n^-2, L_n - L_inf ~ (L_{n/2} - L_n) / 3.  The estimate is the whole
+                # last difference, three times that correction: the first levels are not always asymptotic.
+                diff = h[-2] - h[-1]
+                estimate = abs(diff)
+                if len(h) >= 3:
+                    # a level that barely moves after one that moved a lot has stalled (a kink it cannot cross),
+                    # not converged: with an error ~ n^-2 each change is about a quarter of the one before
+                    estimate = max(estimate, abs(h[-3] - h[-2]) / 4.0)
+                # what the last round still gained: the optimization of this level may not have finished
+                estimate += gain[id(c)]
+                # three levels at least: the change between the first two is often not yet in the asymptotic
+                # range (measured: 3.8e-3 off at tol 1e-3 after two), and the third checks it through the ratio
+                if (estimate <= max(tol * abs(h[-1]), atol) and len(h) >= 3) or n >= max_segments:
+                    c.result = RefinedPath(c.X, h[-1] - diff / 3.0, Ln, estimate, len(c.X) - 1)
+                    continue
+            elif Ln == 0.0:
+                c.result = RefinedPath(c.X, 0.0, 0.0, 0.0, len(c.X) - 1)
+                continue
+            # double: a free midpoint in every segment
+            X = c.X
+            Y = np.empty((2 * len(X) - 1, 2))
+            Y[0::2], Y[1::2] = X, 0.5 * (X[:-1] + X[1:])
+            modes: list = []
+            for k in range(len(X)):
+                modes.append(c.modes[k])
+                if k < len(X) - 1:
+                    modes.append("free")
+            c.X, c.modes = Y, modes
+            nxt.append(c)
+        live = nxt
+        n *= 2
+    return [c.result for c in curves]
+
+
+def refine(
+    domain: Domain,
+    metric: Metric,
+    route: np.ndarray,
+    start_ground: int | None = None,
+    end_ground: int | None = None,
+    closed: bool = False,
+    tol: float = 1e-3,
+    atol: float = 0.0,
+    start: int = 8,
+    max_segments: int = 512,
+    max_rounds: int = 8,
+) -> RefinedPath:
+    """Refine one grid route into a geodesic (see :func:`refine_many`, which refines several at once).
+
+    Parameters
+    ----------
+    domain : Domain
+        The pair domain.
+    metric : Metric
+        The metric on M x M.
+    route : (k, 2) ndarray
+        Grid route in parameters (unwrapped across seams).
+    start_ground, end_ground : int, optional
+        Ground on which the first / last point slides (eq. (9)); ``None``:
+        a fixed crossing point.
+    closed : bool, default False
+        A closed curve: ``route[-1] - route[0]`` is a period shift.
+    tol, atol, start, max_segments, max_rounds
+        As in :func:`refine_many`.
+
+    Returns
+    -------
+    RefinedPath
+    """
+    job = GeodesicJob(np.asarray(route, dtype=float), start_ground, end_ground, closed)
+    return refine_many(domain, metric, [job], tol, atol, start, max_segments, max_rounds)[0]
