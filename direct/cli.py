@@ -186,12 +186,15 @@ def summary(scene, result) -> str:
     s = result.settings
     metric = ", ".join(
         f"{k}={v}" for k, v in s.items()
-        if k not in ("metric", "tol", "resolution", "neighbours", "backend", "refine", "second_pass")
+        if k not in ("metric", "tol", "resolution", "neighbours", "backend", "refine", "second_pass",
+                     "grazing_second_pass")
     )
+    grazing = s.get("grazing_second_pass")
     lines.append(
         f"metric: {s.get('metric')}{f' ({metric})' if metric else ''}; tol={s.get('tol')}, "
         f"resolution={s.get('resolution')}, neighbours={s.get('neighbours')}, backend={s.get('backend')}, "
         f"refine={s.get('refine')}, second pass={s.get('second_pass')}"
+        + (f" (grazing crossings: second pass on {grazing} domain{'s' if grazing > 1 else ''})" if grazing else "")
     )
     lines.append("")
     n = len(result.crossings)

@@ -1,8 +1,9 @@
 r"""The penalty ``J(phi)`` by the direct method (section 5.1.1): the pipeline.
 
 scene -> crossings (:mod:`direct.crossings`) -> pair domains and grid graphs
-(:mod:`direct.grid`) -> grid geodesics and refined geodesics
-(:mod:`direct.geodesics`) -> assignment program (34) (:mod:`direct.matching`)
+(:mod:`direct.grid`) -> grid geodesics (:mod:`direct.geodesics`) -> refined
+geodesics, all the curves of a domain at once (:mod:`direct.refinement`)
+-> assignment program (34) (:mod:`direct.matching`)
 -> :class:`Penalty`.
 
 Convention: ``value`` is ``J`` over the whole of ``M x M`` as in eq. (34):
@@ -163,8 +164,10 @@ class Penalty:
     value : float
         ``J(phi)`` over the whole of ``M x M`` (eq. (34); both points of each crossing).
     error_estimate : float
-        Estimated absolute error of ``value`` (sum of the Richardson
-        corrections of the refined geodesics; 0 when there is no crossing).
+        Estimated absolute error of ``value``: the sum of the estimates of
+        the refined geodesics (:func:`direct.refinement.refine_many`), plus
+        the spread between the two solutions where a second pass runs; 0
+        when there is no crossing.
     grid_value : float
         The same program solved with the grid (Dijkstra) distances alone.
     crossings : list of Crossing
@@ -554,7 +557,10 @@ def penalty(
         geodesic rides a crease of the metric (a vertex line along which
         ``rho`` has a kink) or where several local geodesics compete, two
         starts can settle 1e-5 to 1e-4 apart, a spread the discretization
-        estimate alone does not see.  Default: when ``tol < 1e-4``.
+        estimate alone does not see.  Default: when ``tol < 1e-4``.  A
+        domain with a grazing crossing (the sine of the angle between the
+        deformed tangents below 0.1) gets the second pass at every
+        tolerance unless ``second_pass=False``.
 
     Returns
     -------
@@ -607,6 +613,7 @@ def _penalty(scene, metric, power, tol, resolution, neighbours, backend, refine,
     if neighbours not in (8, 16, 32):
         raise DirectError(f"neighbours must be 8, 16 or 32, got {neighbours!r}")
     settings: dict[str, Any] = dict(met.describe())
+    allow_second = second_pass is not False  # grazing domains get a second pass unless it is refused
     if second_pass is None:
         second_pass = tol < 1e-4
     settings.update(tol=float(tol), resolution=int(resolution), neighbours=int(neighbours), backend=backend,
@@ -622,7 +629,10 @@ def _penalty(scene, metric, power, tol, resolution, neighbours, backend, refine,
         # a grazing crossing's geodesic runs down a narrow valley into a corner of the domain and turns onto a side
         # there; the refinement can settle short of that turn with a small estimate, so such domains always get a
         # second start (measured: 1.3e-3 off with an estimate of 1.5e-5 at 0.003 rad and tol 1e-3 without it)
-        if settings["second_pass"] or (refine and _min_sine(dom, crossings) < _GRAZING):
+        grazing = refine and allow_second and _min_sine(dom, crossings) < _GRAZING
+        if grazing and not settings["second_pass"]:
+            settings["grazing_second_pass"] = settings.get("grazing_second_pass", 0) + 1  # domains, for the record
+        if settings["second_pass"] or grazing:
             other = dict(settings, resolution=max(4, (3 * settings["resolution"]) // 4))
             value2, _, err2, curves2 = _solve_domain(dom, met, other, backend, refine)
             spread = abs(value2 - value)

@@ -35,3 +35,12 @@ def test_grazing_crossings_reach_the_reference(alpha):
     err = abs(res.value - exact)
     assert err <= 1e-3 * exact
     assert err <= res.error_estimate
+
+
+def test_grazing_domains_get_a_second_start_unless_refused():
+    """Below a sine of 0.1 the refinement can settle short of the turn into the corner (rounding decides);
+    such domains are solved from two grids' routes at every tolerance, and the spread enters the estimate."""
+    grazing = direct.scenes.cross(0.5, 0.5, 0.5, 0.5, angle=0.05)
+    assert direct.penalty(grazing).settings.get("grazing_second_pass") == 1
+    assert "grazing_second_pass" not in direct.penalty(grazing, second_pass=False).settings
+    assert "grazing_second_pass" not in direct.penalty(direct.scenes.cross(0.5, 0.5, 0.5, 0.5, angle=0.5)).settings

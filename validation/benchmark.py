@@ -1,6 +1,6 @@
 """Side-by-side benchmark of ways to compute J, in one process.
 
-Run ``python validation/benchmark.py`` (about a minute).  It writes, beside
+Run ``python validation/benchmark.py`` (about two minutes).  It writes, beside
 this file, ``benchmark.csv`` (one row per run), ``benchmark.png`` (relative
 error against wall time, log-log) and ``benchmark.md`` (a summary with
 ratios).  Times are wall times on a shared machine: read the ratios, and the
@@ -21,7 +21,7 @@ the paper's enumeration, the growth of the pipeline's time with the number
 of crossings and with ``1 / tol``, and the networkx pipeline (a networkx graph,
 a full Dijkstra search from every terminal, no refinement) against this whole
 pipeline (bounded scipy searches, then the refinement) at equal resolution on
-zigzags of 3, 10 and 30 crossings; also the networkx grid stage followed by
+zigzags of 3, 10, 30 and 100 crossings; also the networkx grid stage followed by
 this refinement, which both then share.
 """
 
@@ -140,7 +140,7 @@ def main() -> list[dict]:
         rows.append(dict(method="direct, zigzag tol", setting=f"tol={tol:g}", value=res.value,
                          rel_error=abs(res.value - ref) / ref, seconds=dt))
     # networkx (full searches from every terminal) against scipy (bounded searches) at equal resolution
-    for n in (3, 10, 30):
+    for n in (3, 10, 30, 100):
         sc = zigzag(n)
         for backend in ("scipy", "networkx"):
             res, dt = timed(direct.penalty, sc, refine=False, backend=backend, repeat=2 if backend == "scipy" else 1)
@@ -165,7 +165,7 @@ def _chart(rows):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(6.5, 4.6))
+    fig, (ax, ax2) = plt.subplots(1, 2, figsize=(12, 4.6))
     styles = {"direct": "o-", "dijkstra-8": "s--", "dijkstra-16": "d--", "networkx": "v:", "skfmm-1": "^-.",
               "skfmm-2": "<-."}
     for method, style in styles.items():
@@ -177,6 +177,19 @@ def _chart(rows):
     ax.set_ylabel("relative error of J^G (60-degree crossing)")
     ax.set_title("error against time: lower left is better")
     ax.legend(fontsize=8)
+    # the cost against the number of crossings, at equal resolution (128)
+    for method, style, label in (("pipeline, scipy", "o-", "direct (grid + refinement)"),
+                                 ("grid stage, networkx", "v:", "networkx, grid only (straightforward)"),
+                                 ("pipeline, networkx", "s--", "networkx grid + this refinement"),
+                                 ("grid stage, scipy", "d-.", "direct, grid stage only")):
+        pts = sorted((int(r["setting"].split("=")[1]), r["seconds"]) for r in rows if r["method"] == method)
+        if pts:
+            n, t = zip(*pts)
+            ax2.loglog(n, t, style, label=label)
+    ax2.set_xlabel("crossings (zigzag through a line)")
+    ax2.set_ylabel("wall time per call (s)")
+    ax2.set_title("cost against crossings, equal resolution (128 cells)")
+    ax2.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(os.path.join(HERE, "benchmark.png"), dpi=120)
 
@@ -210,7 +223,7 @@ def _summary(rows, cal):
     z10 = pick("direct, zigzag", "crossings=10")["seconds"]
     z100 = pick("direct, zigzag", "crossings=100")["seconds"]
     lines += [f"- 10 crossings at tol 1e-3: {z10:.3f} s (target 0.2 s); 100 crossings: {z100:.2f} s (target 5 s)."]
-    for n in (3, 10, 30):
+    for n in (3, 10, 30, 100):
         key = f"crossings={n}"
         ours = pick("pipeline, scipy", key)["seconds"]
         g = pick("grid stage, networkx", key)["seconds"] / pick("grid stage, scipy", key)["seconds"]

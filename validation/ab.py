@@ -1,0 +1,90 @@
+"""Time two commits of ``direct`` against each other on the same scenes, alternately, in one run.
+
+Run ``python validation/ab.py REV`` (for example ``python validation/ab.py HEAD~1``; about a minute).
+It checks ``REV`` out into a temporary git worktree, then times the working tree's ``direct`` and
+``REV``'s alternately, each in a fresh process (``--rounds`` times, best of ``--repeat`` calls per
+scene and process), so that the noise of this shared machine hits both alike.  It writes
+``validation/ab.csv`` (one row per process and scene) and prints the ratio of the medians of the
+best times per scene, with the values both versions return.
+
+Scenes: zigzags of 10 and 100 crossings through a line (``benchmark.zigzag``), the 60-degree crossing
+``cross60`` and the figure eight ``fig10`` (a circle with itself), at the default settings.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import os
+import subprocess
+import sys
+import tempfile
+
+import numpy as np
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.dirname(HERE)
+
+CHILD = r"""
+import json, sys, time
+sys.path.insert(0, {validation!r})
+import direct
+from benchmark import zigzag
+scenes = {{"zigzag10": zigzag(10), "zigzag100": zigzag(100), "cross60": direct.scenes.get("cross60"),
+          "fig10": direct.scenes.get("fig10")}}
+out = {{}}
+for name, sc in scenes.items():
+    res = direct.penalty(sc)  # warm up
+    best = float("inf")
+    for _ in range({repeat}):
+        t0 = time.perf_counter()
+        res = direct.penalty(sc)
+        best = min(best, time.perf_counter() - t0)
+    out[name] = (best, res.value, res.error_estimate)
+print(json.dumps(out))
+"""
+
+
+def run(tree: str, repeat: int) -> dict:
+    """Best times and values of the ``direct`` in ``tree``, measured in a fresh process."""
+    code = CHILD.format(validation=HERE, repeat=repeat)
+    env = dict(os.environ, PYTHONPATH=tree)
+    out = subprocess.run([sys.executable, "-c", code], cwd=tree, env=env, check=True, capture_output=True, text=True)
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("rev", help="the git revision to compare the working tree with")
+    ap.add_argument("--rounds", type=int, default=3)
+    ap.add_argument("--repeat", type=int, default=3)
+    args = ap.parse_args(argv)
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        old = os.path.join(tmp, "old")
+        subprocess.run(["git", "worktree", "add", "--detach", "-q", old, args.rev], cwd=ROOT, check=True)
+        try:
+            for r in range(args.rounds):
+                for label, tree in (("old", old), ("new", ROOT)):
+                    for scene, (sec, value, est) in run(tree, args.repeat).items():
+                        rows.append(dict(round=r, version=label, scene=scene, seconds=sec, value=value,
+                                         error_estimate=est))
+        finally:
+            subprocess.run(["git", "worktree", "remove", "--force", old], cwd=ROOT, check=False)
+    with open(os.path.join(HERE, "ab.csv"), "w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+    print(f"old = {args.rev}, new = working tree; median over {args.rounds} rounds of the best of {args.repeat} calls")
+    for scene in dict.fromkeys(r["scene"] for r in rows):
+        t = {v: float(np.median([r["seconds"] for r in rows if r["scene"] == scene and r["version"] == v]))
+             for v in ("old", "new")}
+        val = {v: next(r["value"] for r in rows if r["scene"] == scene and r["version"] == v) for v in ("old", "new")}
+        print(f"{scene:10s} old {t['old']:.4f} s  new {t['new']:.4f} s  old/new {t['old'] / t['new']:.2f}  "
+              f"values {val['old']:.10g} / {val['new']:.10g}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
