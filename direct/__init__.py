@@ -24,6 +24,7 @@ from .errors import (
     NotSupportedError,
     SceneError,
     SceneFileError,
+    ToleranceWarning,
 )
 from .penalty import Penalty, penalty
 from .scene import Component, Scene, load_scene
@@ -43,6 +44,7 @@ __all__ = [
     "DegenerateError",
     "NotSupportedError",
     "ConvergenceError",
+    "ToleranceWarning",
 ]
 
 __version__ = "0.1.0"

@@ -14,6 +14,7 @@ __all__ = [
     "DegenerateError",
     "NotSupportedError",
     "ConvergenceError",
+    "ToleranceWarning",
 ]
 
 
@@ -39,3 +40,13 @@ class NotSupportedError(DirectError, NotImplementedError):
 
 class ConvergenceError(DirectError, RuntimeError):
     """A numerical stage did not reach the requested tolerance."""
+
+
+class ToleranceWarning(UserWarning):
+    """A result whose ``error_estimate`` exceeds the requested relative tolerance.
+
+    The value is returned with its estimate; the warning says that the
+    tolerance asked for was not reached (turn it into an error with
+    ``warnings.simplefilter("error", direct.ToleranceWarning)`` in a property
+    test that must not accept such a number).
+    """

@@ -71,6 +71,7 @@ admissible deformation.
 from __future__ import annotations
 
 import time
+import warnings
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -78,7 +79,7 @@ import numpy as np
 from threadpoolctl import ThreadpoolController
 
 from .crossings import Crossing, find_crossings
-from .errors import DirectError
+from .errors import DirectError, ToleranceWarning
 from .geodesics import Backend, closed_curve_distances, grid_distances, torus_distances
 from .grid import Domain, build_graph
 from .matching import solve as solve_assignment
@@ -568,6 +569,12 @@ def penalty(
         ``value`` is ``J`` over all of ``M x M`` (eq. (34)): each geometric
         crossing contributes its two points ``(x1, x2)`` and ``(x2, x1)``.
 
+    Warns
+    -----
+    ToleranceWarning
+        When ``error_estimate`` exceeds ``tol * value``: the value is
+        returned, with the warning that the tolerance was not reached.
+
     Raises
     ------
     SceneError
@@ -656,6 +663,15 @@ def _penalty(scene, metric, power, tol, resolution, neighbours, backend, refine,
                 # mirror image in M_j x M_i: coordinates swapped, signs (hence orientation) reversed
                 pairs.append(Pair((nj, ni), None if ep_ is None else ep_[::-1], None if sp_ is None else sp_[::-1],
                                   ec, sc, length, perr, path[::-1, ::-1].copy(), closed))
+    if refine and total > 0 and err_total > tol * total:
+        warnings.warn(
+            f"J = {total:.7g} has an error estimate of {err_total:.2g} ({err_total / total:.1e} relative), above the "
+            f"requested tol={tol:g}: the refinement found geodesics that settle apart from different starts (a "
+            "geodesic along a crease of the metric, or a grazing crossing) or did not converge within its "
+            "levels. Read the value with its error_estimate, or try second_pass=True or another resolution.",
+            ToleranceWarning,
+            stacklevel=3,
+        )
     return Penalty(
         value=float(total),
         error_estimate=float(err_total),

@@ -215,3 +215,21 @@ def test_second_pass_keeps_the_better_family_and_widens_the_estimate(seed):
     other = direct.penalty(sc, tol=1e-5, second_pass=False, resolution=96)
     assert two.value <= min(one.value, other.value) + 1e-12 * one.value
     assert two.error_estimate >= abs(one.value - other.value) - 1e-12 * one.value
+
+
+def test_a_result_that_misses_its_tolerance_says_so():
+    """The oracle never returns a number less accurate than asked without a warning: seed 114 of the
+    metamorphic study has geodesics along a crease that settle 6e-4 apart from two grids' routes."""
+    scene = random_crossing_scene(114, n_comp=2, n_vert=7, min_crossings=1, max_crossings=10)
+    with pytest.warns(direct.ToleranceWarning, match="above the requested tol=1e-05"):
+        res = direct.penalty(scene, tol=1e-5)
+    assert res.error_estimate > 1e-5 * res.value
+
+
+def test_a_result_within_its_tolerance_does_not_warn():
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", direct.ToleranceWarning)
+        res = direct.penalty("cross60", tol=1e-6)
+    assert res.error_estimate <= 1e-6 * res.value
