@@ -668,7 +668,9 @@ def _penalty(scene, metric, power, tol, resolution, neighbours, backend, refine,
             f"J = {total:.7g} has an error estimate of {err_total:.2g} ({err_total / total:.1e} relative), above the "
             f"requested tol={tol:g}: the refinement found geodesics that settle apart from different starts (a "
             "geodesic along a crease of the metric, or a grazing crossing) or did not converge within its "
-            "levels. Read the value with its error_estimate, or try second_pass=True or another resolution.",
+            "levels. Read the value with its error_estimate"
+            + (", or try another resolution." if settings["second_pass"] or settings.get("grazing_second_pass")
+               else ", or try second_pass=True or another resolution."),
             ToleranceWarning,
             stacklevel=3,
         )
