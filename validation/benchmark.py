@@ -1,6 +1,6 @@
 """Side-by-side benchmark of ways to compute J, in one process.
 
-Run ``python validation/benchmark.py`` (about two minutes).  It writes, beside
+Run ``python validation/benchmark.py`` (about a minute).  It writes, beside
 this file, ``benchmark.csv`` (one row per run), ``benchmark.png`` (relative
 error against wall time, log-log) and ``benchmark.md`` (a summary with
 ratios).  Times are wall times on a shared machine: read the ratios, and the
