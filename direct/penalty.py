@@ -463,14 +463,13 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
                     owner.append(n)
             if ranked:
                 coarse = coarse_geodesics(domain, metric, [GeodesicJob(p, end_ground=g) for _, g, p in ranked])
-                lengths = [length for _, length in coarse]
-                for n in {n for n, _, _ in ranked}:
-                    mine = [k for k, r in enumerate(ranked) if r[0] == n]
-                    shortest = min(lengths[k] for k in mine)
-                    for k in mine:
-                        if lengths[k] <= 1.02 * shortest:  # refine starts from the coarse geodesic
-                            jobs.append(GeodesicJob(coarse[k][0], end_ground=ranked[k][1]))
-                            owner.append(n)
+                shortest: dict[int, float] = {}
+                for (n, _, _), (_, length) in zip(ranked, coarse):
+                    shortest[n] = min(shortest.get(n, np.inf), length)
+                for (n, g, _), (X, length) in zip(ranked, coarse):
+                    if length <= 1.02 * shortest[n]:  # refine starts from the coarse geodesic
+                        jobs.append(GeodesicJob(X, end_ground=g))
+                        owner.append(n)
             refined = refine_many(domain, metric, jobs, tol=tol, atol=atol)
             out: list = [None] * len(keys)
             for n, rp in zip(owner, refined):

@@ -506,32 +506,22 @@ def _insert_breaks(domain: Domain, X: np.ndarray, modes: list) -> tuple[np.ndarr
     return np.array(out_X), out_modes
 
 
-def _newton(par, unpack, length, assemble, z, scale, max_iter, rtol=1e-11):
-    """Damped Newton (Levenberg-Marquardt) with backtracking: ``(X, converged)``.
+def _newton(par, unpack, length, assemble, z, max_iter, rtol=1e-11):
+    """Damped Newton (Levenberg-Marquardt) with backtracking on one curve: ``(X, converged)``.
 
-    Converged when the Newton decrement (the model's decrease, about twice the
-    length still to gain) is at most ``rtol`` times the length.
-
-    ``assemble(X)`` returns the length, its gradient and its Hessian in the
-    unknowns: a sparse matrix, or ``(diag, off)`` for a tridiagonal one.
+    The general form, with a sparse Hessian (closed curves); open curves go
+    through :func:`_newton_many`, which follows the same rules.  Converged
+    when the Newton decrement (the model's decrease, about twice the length
+    still to gain) is at most ``rtol`` times the length.  ``assemble(X)``
+    returns the length, its gradient and its sparse Hessian in the unknowns.
     """
     X = unpack(z)
     f, grad, H = assemble(X)
     lam = 1e-8
-    eye = None if isinstance(H, tuple) else sp.identity(par.nv, format="csc")
+    eye = sp.identity(par.nv, format="csc")
     for _ in range(max_iter):
-        if isinstance(H, tuple):
-            diag, off = H
-            damp = np.maximum(np.abs(diag), 1e-12 * max(float(np.abs(diag).max()), 1e-300))  # Marquardt scaling
-            ab = np.zeros((3, len(diag)))
-            ab[0, 1:], ab[1], ab[2, :-1] = off, diag + lam * damp, off
-            try:
-                dz = solve_banded((1, 1), ab, -grad, check_finite=False)
-            except (LinAlgError, ValueError):
-                dz = np.full_like(grad, np.nan)
-        else:
-            hscale = max(float(np.abs(H.diagonal()).max()), 1e-300)
-            dz = spsolve(H + lam * hscale * eye, -grad)
+        hscale = max(float(np.abs(H.diagonal()).max()), 1e-300)
+        dz = spsolve(H + lam * hscale * eye, -grad)
         decrease = -float(dz @ grad)
         if not np.all(np.isfinite(dz)) or decrease <= 0:
             lam = max(lam * 100, 1e-6)
@@ -541,13 +531,6 @@ def _newton(par, unpack, length, assemble, z, scale, max_iter, rtol=1e-11):
         if decrease <= rtol * f:
             return X, True
         t, accepted = 1.0, False
-        if par.banded:  # no vertex moves more than half its shorter segment in one step: the curve keeps its shape
-            seg = np.linalg.norm(np.diff(X, axis=0), axis=1)
-            room = np.minimum(seg[np.maximum(par.vertex - 1, 0)], seg[np.minimum(par.vertex, len(seg) - 1)])
-            room = np.maximum(room, 0.25 * float(np.mean(seg)))  # a vertex beside a tiny segment may still move
-            move = np.abs(dz) * np.sqrt(par._diag)
-            worst = float(np.max(move / np.maximum(room, 1e-300)))
-            t = min(1.0, 0.5 / worst) if worst > 0 else 1.0
         for _ls in range(12):
             X_new = unpack(par.clip(z + t * dz))
             f_new = length(X_new)
@@ -568,8 +551,6 @@ def _newton(par, unpack, length, assemble, z, scale, max_iter, rtol=1e-11):
         lam = max(lam / 10, 1e-12)
         f, grad, H = assemble(X)
     return X, False
-
-
 
 
 def _lbfgs_polish(domain: Domain, metric: Metric, par: _Parametrization, X: np.ndarray, scale: float) -> np.ndarray:
@@ -639,7 +620,7 @@ def _optimize_level(domain: Domain, metric: Metric, X0: np.ndarray, modes: list,
         return float(f.sum()), Mt @ gX, (Mt @ HX @ M).tocsc()
 
     z = par.pack(X0)
-    X, converged = _newton(par, unpack, length, assemble, z, scale, max_iter, rtol=1e-11 if polish else 1e-7)
+    X, converged = _newton(par, unpack, length, assemble, z, max_iter, rtol=1e-11 if polish else 1e-7)
     if converged or not polish:
         return X, converged
     return _lbfgs_polish(domain, metric, par, X, scale), False
@@ -988,7 +969,9 @@ class _Curve:
 
     def __init__(self, job: GeodesicJob, X, modes):
         self.job, self.X, self.modes = job, X, modes
-        self.history: list[float] = []
+        self.history: list[float] = []  # the length reached at each level
+        self.length = 0.0  # the length after the latest round of the current level
+        self.gain = 0.0  # what that round gained
         self.result: RefinedPath | None = None
 
 
@@ -1044,9 +1027,8 @@ def refine_many(
         for c in live:
             if not c.job.closed:
                 c.X, c.modes = _grade_ends(domain, c.X, c.modes, c.job.start_ground, c.job.end_ground, scale)
-        L_prev = dict(zip(map(id, live), _lengths(domain, metric, [c.X for c in live])))
-        gain: dict[int, float] = {}
-        L_last: dict[int, float] = {}
+        for c, L in zip(live, _lengths(domain, metric, [c.X for c in live])):
+            c.length = L
         todo = list(live)
         # rounds of normal moves, the normals recomputed each time, until the length settles:
         # one round cannot carry a vertex past the centre of curvature of the polyline
@@ -1064,17 +1046,15 @@ def refine_many(
             L_new = _lengths(domain, metric, [c.X for c in todo])
             more = []
             for c, L in zip(todo, L_new):
-                gain[id(c)] = max(L_prev[id(c)] - L, 0.0)
-                L_last[id(c)] = L
-                if L_prev[id(c)] - L > 1e-2 * tol * L:
-                    L_prev[id(c)] = L
+                c.gain, c.length = max(c.length - L, 0.0), L
+                if c.gain > 1e-2 * tol * L:
                     more.append(c)
             todo = more
             if not todo:
                 break
         nxt = []
         for c in live:
-            Ln = L_last[id(c)]  # the length of the last round's polyline
+            Ln = c.length  # the length of the last round's polyline
             c.history.append(Ln)
             h = c.history
             if len(h) >= 2:
@@ -1087,7 +1067,7 @@ def refine_many(
                     # not converged: with an error ~ n^-2 each change is about a quarter of the one before
                     estimate = max(estimate, abs(h[-3] - h[-2]) / 4.0)
                 # what the last round still gained: the optimization of this level may not have finished
-                estimate += gain[id(c)]
+                estimate += c.gain
                 # three levels at least: the change between the first two is often not yet in the asymptotic
                 # range (measured: 3.8e-3 off at tol 1e-3 after two), and the third checks it through the ratio
                 if (estimate <= max(tol * abs(h[-1]), atol) and len(h) >= 3) or n >= max_segments:
