@@ -166,26 +166,27 @@ def _chart(rows):
     import matplotlib.pyplot as plt
 
     fig, (ax, ax2) = plt.subplots(1, 2, figsize=(12, 4.6))
-    styles = {"direct": "o-", "dijkstra-8": "s--", "dijkstra-16": "d--", "networkx": "v:", "skfmm-1": "^-.",
-              "skfmm-2": "<-."}
-    for method, style in styles.items():
-        pts = [(r["seconds"], max(r["rel_error"], 1e-16)) for r in rows if r["method"] == method]
-        if pts:
-            t, e = zip(*pts)
-            ax.loglog(t, e, style, label=method)
+
+    def lines(axis, series, x, y):
+        """One log-log line per ``(method, style, label)`` of ``series``, points sorted by ``x``."""
+        for method, style, label in series:
+            pts = sorted((x(r), y(r)) for r in rows if r["method"] == method)
+            if pts:
+                axis.loglog(*zip(*pts), style, label=label)
+
+    lines(ax, [(m, st, m) for m, st in (("direct", "o-"), ("dijkstra-8", "s--"), ("dijkstra-16", "d--"),
+                                        ("networkx", "v:"), ("skfmm-1", "^-."), ("skfmm-2", "<-."))],
+          lambda r: r["seconds"], lambda r: max(r["rel_error"], 1e-16))
     ax.set_xlabel("wall time per call (s)")
     ax.set_ylabel("relative error of J^G (60-degree crossing)")
     ax.set_title("error against time: lower left is better")
     ax.legend(fontsize=8)
     # the cost against the number of crossings, at equal resolution (128)
-    for method, style, label in (("pipeline, scipy", "o-", "direct (grid + refinement)"),
-                                 ("grid stage, networkx", "v:", "networkx, grid only (straightforward)"),
-                                 ("pipeline, networkx", "s--", "networkx grid + this refinement"),
-                                 ("grid stage, scipy", "d-.", "direct, grid stage only")):
-        pts = sorted((int(r["setting"].split("=")[1]), r["seconds"]) for r in rows if r["method"] == method)
-        if pts:
-            n, t = zip(*pts)
-            ax2.loglog(n, t, style, label=label)
+    lines(ax2, [("pipeline, scipy", "o-", "direct (grid + refinement)"),
+                ("grid stage, networkx", "v:", "networkx, grid only (straightforward)"),
+                ("pipeline, networkx", "s--", "networkx grid + this refinement"),
+                ("grid stage, scipy", "d-.", "direct, grid stage only")],
+          lambda r: int(r["setting"].split("=")[1]), lambda r: r["seconds"])
     ax2.set_xlabel("crossings (zigzag through a line)")
     ax2.set_ylabel("wall time per call (s)")
     ax2.set_title("cost against crossings, equal resolution (128 cells)")
