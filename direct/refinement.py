@@ -408,6 +408,56 @@ def _truncate_at_boundary(domain: Domain, ground: int, X: np.ndarray, modes: lis
     return X, modes
 
 
+def _unfold(domain: Domain, metric: Metric, routes: list[np.ndarray], max_passes: int = 50) -> list[np.ndarray]:
+    """Cut the folds out of grid routes: drop a vertex where the route turns back, if that shortens it.
+
+    On a grid that is coarse beside the scene's features a route may leave a
+    crossing point towards a grid node behind it and come back (the metric
+    nearly vanishes there, so the detour costs the grid little).  The
+    refinement moves vertices across the curve only, so it can straighten
+    bends but never pull such a fold out: it would settle on a curve longer
+    than the geodesic (measured: 0.4 % on the 100-crossing zigzag at
+    resolution 128) with a small estimate.  Each pass drops, on every route
+    at once, the vertices where the route turns by more than 90 degrees and
+    whose removal shortens its exact length (not two neighbours in one
+    pass).  A chord between two vertices stays in the domain (its local
+    coordinates are convex and routes are unwrapped across seams) and keeps
+    the curve's homotopy class.  Ends are kept, and so is the first vertex of
+    a closed route.
+    """
+    routes = [np.asarray(r, dtype=float) for r in routes]
+    todo = [i for i, r in enumerate(routes) if len(r) >= 3]
+    for _ in range(max_passes):
+        if not todo:
+            break
+        rs = [routes[i] for i in todo]
+        sizes = np.array([len(r) - 2 for r in rs])
+        A = np.vstack([r[:-2] for r in rs])
+        B = np.vstack([r[1:-1] for r in rs])
+        C = np.vstack([r[2:] for r in rs])
+        back = ((B - A) * (C - B)).sum(axis=1) < 0  # turns by more than 90 degrees
+        gain = np.zeros(len(B))
+        if back.any():
+            k = np.flatnonzero(back)
+            two = segment_lengths(metric, domain.comps, np.vstack([A[k], B[k]]), np.vstack([B[k], C[k]]))
+            one = segment_lengths(metric, domain.comps, A[k], C[k])
+            both = two[: len(k)] + two[len(k):]
+            gain[k] = np.where(both - one > 1e-12 * both, both - one, 0.0)  # above rounding
+        still = []
+        off = 0
+        for i, r, m in zip(todo, rs, sizes):
+            g = gain[off:off + m]
+            off += m
+            # not two neighbours at once: each dropped vertex gains more than the ones beside it
+            drop = (g > 0) & (g >= np.concatenate([[0.0], g[:-1]])) & (g > np.concatenate([g[1:], [0.0]]))
+            if drop.any():
+                routes[i] = np.vstack([r[:1], r[1:-1][~drop], r[-1:]])
+                if len(routes[i]) >= 3:
+                    still.append(i)
+        todo = still
+    return routes
+
+
 def _resampled_with_ends(domain: Domain, route: np.ndarray, n: int, start_ground, end_ground, closed: bool):
     """``n`` segments evenly along the route; ends fixed (crossing points) or sliding on their boundary."""
     X = _resample(route, n)
@@ -941,8 +991,8 @@ def coarse_geodesics(domain: Domain, metric: Metric, jobs: list[GeodesicJob], n:
         Each coarse geodesic (parameters) and its exact length.
     """
     scale = float(max(domain.lengths))
-    state = [_resampled_with_ends(domain, np.asarray(j.route, dtype=float), n, j.start_ground, j.end_ground,
-                                  j.closed) for j in jobs]
+    routes = _unfold(domain, metric, [j.route for j in jobs])
+    state = [_resampled_with_ends(domain, r, n, j.start_ground, j.end_ground, j.closed) for r, j in zip(routes, jobs)]
     for _ in range(rounds):
         outs = _optimize_many(domain, metric, [(X, _normal_modes(X, modes, j.closed), j.shift)
                                                for (X, modes), j in zip(state, jobs)],
