@@ -493,6 +493,37 @@ def _initial_polyline(domain: Domain, route: np.ndarray, start: int, start_groun
     return X, modes
 
 
+def _merge_collapsed(X: np.ndarray, modes: list, rel: float = 1e-6) -> tuple[np.ndarray, list]:
+    """Drop an interior vertex that has landed on its neighbour.
+
+    A refraction vertex on a vertex line met at a shallow angle (a valley of
+    the metric's norm) can slide onto its free neighbour.  The zero-length
+    segment left between them is a kink that neither Newton nor L-BFGS can
+    cross, each doubling splits it again, and the levels then converge, at
+    the expected rate, to a pinned curve: the error estimate misses it.  A
+    segment shorter than ``rel`` times the mean segment merges its two
+    vertices; a free vertex goes first, ends and crossing points stay, and
+    :func:`_insert_breaks` puts back a refraction vertex where the curve
+    still crosses a line.
+    """
+    n = len(X)
+    if n <= 3:
+        return X, modes
+    seg = np.linalg.norm(np.diff(X, axis=0), axis=1)
+    tiny = np.flatnonzero(seg < rel * seg.mean())
+    if tiny.size == 0:
+        return X, modes
+    keep = np.ones(n, dtype=bool)
+    for s in tiny:  # a few segments at most: segment s joins vertices s and s + 1
+        if not (keep[s] and keep[s + 1]):
+            continue
+        movable = [k for k in (s + 1, s) if 0 < k < n - 1 and not (isinstance(modes[k], str) and modes[k] == "fixed")]
+        free = [k for k in movable if isinstance(modes[k], str)]
+        if movable:
+            keep[(free or movable)[0]] = False
+    return X[keep], [m for m, k in zip(modes, keep) if k]
+
+
 def _prune_breaks(X: np.ndarray, modes: list) -> tuple[np.ndarray, list]:
     """Drop refraction vertices whose neighbours are on the same side of their line.
 
@@ -1086,7 +1117,7 @@ def refine_many(
             outs = _optimize_many(domain, metric, [(c.X, _normal_modes(c.X, c.modes, c.job.closed), c.job.shift)
                                                    for c in todo], scale)
             for c, (X, _) in zip(todo, outs):
-                X, modes = _insert_breaks(domain, *_prune_breaks(X, c.modes))
+                X, modes = _insert_breaks(domain, *_prune_breaks(*_merge_collapsed(X, c.modes)))
                 if c.job.end_ground is not None:
                     X, modes = _truncate_at_boundary(domain, c.job.end_ground, X, modes)
                     modes = _corner_switch(domain, metric, X, modes, len(X) - 1)

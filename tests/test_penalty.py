@@ -218,9 +218,9 @@ def test_second_pass_keeps_the_better_family_and_widens_the_estimate(seed):
 
 
 def test_a_result_that_misses_its_tolerance_says_so():
-    """The oracle never returns a number less accurate than asked without a warning: seed 114 of the
-    metamorphic study has geodesics along a crease that settle 6e-4 apart from two grids' routes."""
-    scene = random_crossing_scene(114, n_comp=2, n_vert=7, min_crossings=1, max_crossings=10)
+    """The oracle never returns a number less accurate than asked without a warning: seed 138 of the
+    multistart study has a geodesic whose levels still move by 8e-4 (relative) at the finest level."""
+    scene = random_crossing_scene(138, n_comp=2, n_vert=7, min_crossings=1, max_crossings=10)
     with pytest.warns(direct.ToleranceWarning, match="above the requested tol=1e-05"):
         res = direct.penalty(scene, tol=1e-5)
     assert res.error_estimate > 1e-5 * res.value
