@@ -218,6 +218,8 @@ def summary(scene, result) -> str:
     lines.append(
         f"{_symbol(s)} = {_g(result.value)} \u00b1 {result.error_estimate:.1g} "
         f"(grid Dijkstra alone: {_g(result.grid_value)})"
+        if math.isfinite(result.error_estimate)
+        else f"{_symbol(s)} = {_g(result.value)} (grid Dijkstra alone, no error estimate: its bias is a few per cent)"
     )
     half = [p for p in result.pairs if _in_half(p, scene)]
     if half:

@@ -236,7 +236,7 @@ def _cover_polyline(graph: GridGraph, nodes) -> np.ndarray:
     return graph.domain.to_param(np.array(st))
 
 
-def closed_curve_distances(graph: GridGraph, max_bases: int = 24) -> dict:
+def closed_curve_distances(graph: GridGraph, max_bases: int = 24, most: int = 1, margin: float = 0.01) -> dict:
     """Shortest closed grid curves of a torus in the primitive homotopy classes.
 
     Parameters
@@ -246,6 +246,16 @@ def closed_curve_distances(graph: GridGraph, max_bases: int = 24) -> dict:
     max_bases : int
         Base points tried per seam: a closed curve of class ``(a, b)`` with
         ``a != 0`` crosses the seam ``s = 0``, one with ``a = 0`` the seam ``v = 0``.
+    most : int, default 1
+        Closed curves returned per class: the best, then the curves through
+        other base points that are local minima of the grid length along the
+        seam and within ``(1 + margin)`` of the best.  Where the metric is
+        nearly invariant along a class (two nested regular polygons: a family
+        of closed geodesics, shifted copies of each other), the grid cannot
+        tell which start leads to the shortest local geodesic, and the
+        refinement keeps the best of several (:func:`direct.penalty.penalty`).
+    margin : float, default 0.01
+        See ``most``.
 
     Returns
     -------
@@ -253,6 +263,8 @@ def closed_curve_distances(graph: GridGraph, max_bases: int = 24) -> dict:
         ``{(a, b): (length, polyline)}`` for the eight classes with ``|a|, |b| <= 1``;
         the polyline (parameters) ends at its start shifted by ``(a S, b V)`` in
         local coordinates.  Opposite classes are the same curves run backwards.
+        With ``most > 1`` each value is a list of such pairs instead, the
+        shortest first.
     """
     N = graph.n_nodes
     M = _cover_matrix(graph)
@@ -263,12 +275,18 @@ def closed_curve_distances(graph: GridGraph, max_bases: int = 24) -> dict:
         on_seam = np.flatnonzero(np.isfinite(grid[:, 0]) & np.isclose(grid[:, axis], 0.0))
         on_seam = on_seam[np.unique(np.linspace(0, len(on_seam) - 1, min(max_bases, len(on_seam))).astype(int))]
         src = on_seam + N * centre
+        targets = {c: on_seam + N * _COVER.index(c) for c in classes}
         dist, node_route = _shortest(M, src, "scipy")
         for a, b in classes:
-            tgt = on_seam + N * _COVER.index((a, b))
+            tgt = targets[(a, b)]
             d = dist[np.arange(len(src)), tgt]
-            k = int(np.argmin(d))
-            poly = _cover_polyline(graph, node_route(k, tgt[k]))
-            out[(a, b)] = (float(d[k]), poly)
-            out[(-a, -b)] = (float(d[k]), poly[::-1].copy())
+            # the base points where the grid length is a local minimum along the (periodic) seam, best first
+            is_min = (d <= np.roll(d, 1)) & (d <= np.roll(d, -1)) & np.isfinite(d)
+            picked = np.flatnonzero(is_min & (d <= (1 + margin) * d.min()))
+            picked = picked[np.argsort(d[picked], kind="stable")][:most]
+            if len(picked) == 0:
+                picked = np.array([int(np.argmin(d))])
+            found = [(float(d[k]), _cover_polyline(graph, node_route(k, tgt[k]))) for k in picked]
+            back = [(length, poly[::-1].copy()) for length, poly in found]
+            out[(a, b)], out[(-a, -b)] = (found, back) if most > 1 else (found[0], back[0])
     return out

@@ -70,6 +70,7 @@ admissible deformation.
 
 from __future__ import annotations
 
+import math
 import time
 import warnings
 from dataclasses import dataclass, field
@@ -96,6 +97,12 @@ __all__ = ["penalty", "Penalty", "Pair"]
 #: a curve between two points longer than sending both to the boundary is never used (see grid_distances);
 #: the factor covers the grid's overestimate (at most 8 % with 8 neighbours) with a wide margin
 _SEARCH_BOUND = 1.5
+
+#: starts of a curve with both ends free around a circle, shifted by these fractions of an edge (and unshifted)
+_FAMILY_SHIFTS = (0.29, 0.61)
+
+#: closed curves of a torus refined from this many starts each (see closed_curve_distances), the best kept
+_CLOSED_STARTS = 3
 
 #: crossings whose tangents make an angle with sine below this are grazing: their domain always gets a second pass
 _GRAZING = 0.1
@@ -168,7 +175,9 @@ class Penalty:
         Estimated absolute error of ``value``: the sum of the estimates of
         the refined geodesics (:func:`direct.refinement.refine_many`), plus
         the spread between the two solutions where a second pass runs; 0
-        when there is no crossing.
+        when there is no crossing.  NaN with ``refine=False``: the grid value
+        has no estimate (its stencil and sampling bias reach 2 to 9 % on the
+        cases of ``validation/failures.md``, with either sign possible).
     grid_value : float
         The same program solved with the grid (Dijkstra) distances alone.
     crossings : list of Crossing
@@ -364,6 +373,39 @@ def _settle(grid_costs: dict, solve, refine_keys, bias: float):
     raise DirectError("the choice of refined geodesics did not settle")  # pragma: no cover
 
 
+def _family_shifts(domain: Domain) -> list[np.ndarray]:
+    """Shifts (parameters) of a curve along the circle of a periodic domain: the starts of a curve with free ends.
+
+    Rotating a curve whose ends are both free along the circle (the ``s`` axis)
+    maps it to a curve of nearly the same length: exactly the same on a
+    regular polygon rotated by a whole number of edges.  The refinement then
+    faces a family of nearly tied geodesics, and a route the grid laid on a
+    symmetry line of the polygon (its cells aligned with the vertices) is a
+    critical point that doubling the segments does not move, with an estimate
+    at rounding level.  Starts shifted by fractions of an edge (0.29 and 0.61:
+    not symmetric about a half edge) leave those lines.
+    """
+    axis = domain.basis[:, 0]
+    comp = domain.comps[int(np.flatnonzero(axis)[0])]
+    edge = float(np.mean(np.diff(comp.params)))
+    return [np.zeros(2)] + [f * edge * axis for f in _FAMILY_SHIFTS]
+
+
+def _best_of_starts(found: list[RefinedPath]) -> RefinedPath:
+    """The shortest of the refined curves of one entry from several starts, its estimate widened by their spread.
+
+    Starts that settle in nearby minima (within 1 %: the same family of
+    geodesics, shifted) leave the global one unknown to about their spread,
+    which is added (nested: 1.4e-5 relative between the minima that three
+    starts reach, with a discretization estimate of 3.7e-6).  Farther minima
+    are other geodesics, and add nothing.
+    """
+    found = sorted(found, key=lambda rp: rp.length)
+    best = found[0]
+    spread = max(rp.length - best.length for rp in found if rp.length <= 1.01 * best.length)
+    return RefinedPath(best.points, best.length, best.upper, best.error_estimate + spread, best.segments)
+
+
 def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backend, do_refine: bool):
     """Optimal family of curves on one domain: ``(value, grid_value, error, curves)``.
 
@@ -384,9 +426,10 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
         grid_costs = {
             (i, j, c): float(T[c][neg[j], pos[i]]) for c in T for i in range(len(pos)) for j in range(len(neg))
         }
-        loops = closed_curve_distances(graph)
-        for c, (length, _) in loops.items():
-            grid_costs[("closed", c)] = length
+        loops = {c: found if isinstance(found, list) else [found]
+                 for c, found in closed_curve_distances(graph, most=_CLOSED_STARTS).items()}
+        for c, found in loops.items():
+            grid_costs[("closed", c)] = found[0][0]
 
         def solve(costs):
             paths = {k: v for k, v in costs.items() if k[0] != "closed"}
@@ -395,13 +438,19 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
 
         def polyline(key):
             if key[0] == "closed":
-                return loops[key[1]][1]
+                return loops[key[1]][0][1]
             i, j, c = key
             return troute(neg[j], pos[i], c)
 
         def refine_keys(keys):
-            jobs = [GeodesicJob(np.asarray(polyline(k), dtype=float), closed=k[0] == "closed") for k in keys]
-            return refine_many(domain, metric, jobs, tol=tol, atol=atol)
+            # a closed curve from each of its starts (closed_curve_distances), all in one batch
+            jobs, owner = [], []
+            for n, k in enumerate(keys):
+                polys = [p for _, p in loops[k[1]]] if k[0] == "closed" else [polyline(k)]
+                jobs += [GeodesicJob(np.asarray(p, dtype=float), closed=k[0] == "closed") for p in polys]
+                owner += [n] * len(polys)
+            refined = refine_many(domain, metric, jobs, tol=tol, atol=atol)
+            return [_best_of_starts([rp for o, rp in zip(owner, refined) if o == n]) for n in range(len(keys))]
 
         def ends(key):
             if key[0] == "closed":
@@ -447,8 +496,17 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
         def refine_keys(keys):
             # the jobs of every key at once: one curve, or for a point and the boundary every stretch of the
             # boundary that the grid cannot rule out (ranked by their coarse geodesics; the close ones refined)
-            jobs, owner, ranked = [], [], []
+            jobs, owner, ranked, family = [], [], [], set()
             for n, (u, v) in enumerate(keys):
+                if u < ng and v < ng and domain.periodic[0]:
+                    # both ends free on a domain around a circle: rotations of the curve along the circle nearly
+                    # preserve its length, so the starts are the route and two shifts of it (see _family_shifts)
+                    poly = route(u, v)
+                    for shift in _family_shifts(domain):
+                        jobs.append(GeodesicJob(poly + shift, start_ground=u, end_ground=v))
+                        owner.append(n)
+                    family.add(n)
+                    continue
                 if (u < ng) == (v < ng):  # point to point, or boundary to boundary
                     jobs.append(GeodesicJob(route(u, v), start_ground=u if u < ng else None,
                                             end_ground=v if v < ng else None))
@@ -468,13 +526,15 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
                     shortest[n] = min(shortest.get(n, np.inf), length)
                 for (n, g, _), (X, length) in zip(ranked, coarse):
                     if length <= 1.02 * shortest[n]:  # refine starts from the coarse geodesic
-                        jobs.append(GeodesicJob(X, end_ground=g))
+                        jobs.append(GeodesicJob(X, end_ground=g, coarse=True))
                         owner.append(n)
             refined = refine_many(domain, metric, jobs, tol=tol, atol=atol)
             out: list = [None] * len(keys)
             for n, rp in zip(owner, refined):
                 if out[n] is None or rp.length < out[n].length:
                     out[n] = rp
+            for n in family:
+                out[n] = _best_of_starts([rp for o, rp in zip(owner, refined) if o == n])
             for n, (u, v) in enumerate(keys):
                 if (u < ng) != (v < ng) and u < ng:  # from the boundary to a point: the curve runs backwards
                     rp = out[n]
@@ -502,7 +562,7 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
             rp = cache[key]
             poly, length, e = rp.points, rp.length, rp.error_estimate
         else:
-            poly, length, e = polyline(key), grid_costs[key], 0.0
+            poly, length, e = polyline(key), grid_costs[key], np.nan  # a grid length: no estimate
         start, end = ends(key)
         for _ in range(count):
             curves.append((start, end, np.asarray(poly, dtype=float), float(length), float(e), key[0] == "closed"))
@@ -673,6 +733,8 @@ def _penalty(scene, metric, power, tol, resolution, neighbours, backend, refine,
             ToleranceWarning,
             stacklevel=3,
         )
+    if not refine and total > 0:
+        err_total = math.nan  # the grid value's bias is not estimated: say so rather than claim 0
     return Penalty(
         value=float(total),
         error_estimate=float(err_total),

@@ -1002,12 +1002,16 @@ class GeodesicJob:
     closed : bool, default False
         A closed curve (section 3.3.4): ``route[-1] - route[0]`` is a period
         shift and every vertex is free.
+    coarse : bool, default False
+        ``route`` is already a coarse geodesic (from :func:`coarse_geodesics`):
+        :func:`refine_many` starts from it without a coarse pass of its own.
     """
 
     route: np.ndarray
     start_ground: int | None = None
     end_ground: int | None = None
     closed: bool = False
+    coarse: bool = False
 
     @property
     def shift(self):
@@ -1138,10 +1142,14 @@ def refine_many(
     # the coarse geodesic, unless the grid route itself is shorter: where the metric vanishes along whole lines the
     # grid route may run along them for free in a staircase that 16 segments cannot follow (fig13 at 192 cells:
     # the coarse geodesic 2 % longer than its route, the refinement from it 1.2 % too high)
-    coarse = coarse_geodesics(domain, metric, jobs)
-    direct_len = _lengths(domain, metric, [job.route for job in jobs])
-    routes = [X if L <= Lr else np.asarray(job.route, dtype=float)
-              for (X, L), Lr, job in zip(coarse, direct_len, jobs)]
+    todo = [k for k, job in enumerate(jobs) if not job.coarse]
+    routes = [np.asarray(job.route, dtype=float) for job in jobs]
+    if todo:
+        coarse = coarse_geodesics(domain, metric, [jobs[k] for k in todo])
+        direct_len = _lengths(domain, metric, [routes[k] for k in todo])
+        for k, (X, L), Lr in zip(todo, coarse, direct_len):
+            if L <= Lr:
+                routes[k] = X
     curves = []
     for job, route in zip(jobs, routes):
         X, modes = _initial_polyline(domain, route, start, job.start_ground, job.end_ground, job.closed)

@@ -48,6 +48,9 @@ def test_penalty_json_options_reach_penalty(capsys):
     assert data["settings"]["resolution"] == 24
     assert data["settings"]["neighbours"] == 8
     assert data["value"] == data["grid_value"]
+    # the grid value carries no estimate of its few-per-cent bias: null, not a claimed 0
+    assert data["error_estimate"] is None
+    assert all(p["error_estimate"] is None for p in data["pairs"])
 
 
 def test_penalty_summary(capsys, cross_value):

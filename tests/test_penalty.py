@@ -132,6 +132,7 @@ def test_scipy_and_networkx_agree(seed):
     a = direct.penalty(sc, backend="scipy", refine=False)
     b = direct.penalty(sc, backend="networkx", refine=False)
     assert a.value == pytest.approx(b.value, rel=1e-12)
+    assert np.isnan(a.error_estimate) and np.isnan(b.error_estimate)  # grid values: no estimate claimed
 
 
 @pytest.mark.parametrize("seed", range(3))
