@@ -347,11 +347,15 @@ def boundary_conditions(domain: Domain) -> dict[str, Any]:
     return {"winds": (int(k1), int(k2))}
 
 
-def _settle(grid_costs: dict, solve, refine_keys, bias: float):
+def _settle(grid_costs: dict, solve, refine_keys, bias: float, finish=None):
     """Solve, refine the chosen curves, re-solve with refined lengths until the choice is refined.
 
     ``refine_keys(keys)`` refines the curves of several entries at once (one
-    batch per round: :func:`direct.refinement.refine_many`).
+    batch per round: :func:`direct.refinement.refine_many`).  Once the
+    choice is made of refined entries, ``finish(keys, cache)`` may refine its
+    entries again from more starts (``{key: RefinedPath}``, no longer than
+    before, so the choice stays optimal) and the program is solved again
+    until the choice is finished.
 
     Entries not refined yet enter as optimistic lower estimates (grid length /
     ``bias``, or divided by the largest overestimate the grid showed on the
@@ -360,21 +364,27 @@ def _settle(grid_costs: dict, solve, refine_keys, bias: float):
     entries cannot be beaten by an unrefined one.
     """
     cache: dict = {}
-    for _ in range(len(grid_costs) + 1):
+    finished: set = set()
+    for _ in range(2 * len(grid_costs) + 2):
         # the grid's overestimate seen on the refined entries, with a margin, bounds the others' below
         seen = [grid_costs[k] / rp.length for k, rp in cache.items() if rp.length > 0 and np.isfinite(grid_costs[k])]
         b = max([bias] + [1.02 * r for r in seen])
         costs = {k: (cache[k].length if k in cache else v / b) for k, v in grid_costs.items()}
         value, chosen = solve(costs)
         missing = [k for k, _ in chosen if k not in cache]
-        if not missing:
+        if missing:
+            cache.update(zip(missing, refine_keys(missing)))
+            continue
+        todo = [k for k, _ in chosen if k not in finished] if finish is not None else []
+        if not todo:
             return value, chosen, cache
-        cache.update(zip(missing, refine_keys(missing)))
+        cache.update(finish(todo, cache))
+        finished.update(todo)
     raise DirectError("the choice of refined geodesics did not settle")  # pragma: no cover
 
 
 def _family_shifts(domain: Domain) -> list[np.ndarray]:
-    """Shifts (parameters) of a curve along the circle of a periodic domain: the starts of a curve with free ends.
+    """Shifts (parameters) along the circle of a periodic domain: the other starts of a curve with free ends.
 
     Rotating a curve whose ends are both free along the circle (the ``s`` axis)
     maps it to a curve of nearly the same length: exactly the same on a
@@ -388,7 +398,7 @@ def _family_shifts(domain: Domain) -> list[np.ndarray]:
     axis = domain.basis[:, 0]
     comp = domain.comps[int(np.flatnonzero(axis)[0])]
     edge = float(np.mean(np.diff(comp.params)))
-    return [np.zeros(2)] + [f * edge * axis for f in _FAMILY_SHIFTS]
+    return [f * edge * axis for f in _FAMILY_SHIFTS]
 
 
 def _best_of_starts(found: list[RefinedPath]) -> RefinedPath:
@@ -443,14 +453,19 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
             return troute(neg[j], pos[i], c)
 
         def refine_keys(keys):
-            # a closed curve from each of its starts (closed_curve_distances), all in one batch
+            jobs = [GeodesicJob(np.asarray(polyline(k), dtype=float), closed=k[0] == "closed") for k in keys]
+            return refine_many(domain, metric, jobs, tol=tol, atol=atol)
+
+        def finish(keys, cache):
+            # a chosen closed curve again from the grid's other closed curves of its class (closed_curve_distances)
+            keys = [k for k in keys if k[0] == "closed" and len(loops[k[1]]) > 1]
             jobs, owner = [], []
-            for n, k in enumerate(keys):
-                polys = [p for _, p in loops[k[1]]] if k[0] == "closed" else [polyline(k)]
-                jobs += [GeodesicJob(np.asarray(p, dtype=float), closed=k[0] == "closed") for p in polys]
-                owner += [n] * len(polys)
-            refined = refine_many(domain, metric, jobs, tol=tol, atol=atol)
-            return [_best_of_starts([rp for o, rp in zip(owner, refined) if o == n]) for n in range(len(keys))]
+            for k in keys:
+                for _, p in loops[k[1]][1:]:
+                    jobs.append(GeodesicJob(np.asarray(p, dtype=float), closed=True))
+                    owner.append(k)
+            refined = refine_many(domain, metric, jobs, tol=tol, atol=atol) if jobs else []
+            return {k: _best_of_starts([cache[k]] + [rp for o, rp in zip(owner, refined) if o == k]) for k in keys}
 
         def ends(key):
             if key[0] == "closed":
@@ -496,17 +511,8 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
         def refine_keys(keys):
             # the jobs of every key at once: one curve, or for a point and the boundary every stretch of the
             # boundary that the grid cannot rule out (ranked by their coarse geodesics; the close ones refined)
-            jobs, owner, ranked, family = [], [], [], set()
+            jobs, owner, ranked = [], [], []
             for n, (u, v) in enumerate(keys):
-                if u < ng and v < ng and domain.periodic[0]:
-                    # both ends free on a domain around a circle: rotations of the curve along the circle nearly
-                    # preserve its length, so the starts are the route and two shifts of it (see _family_shifts)
-                    poly = route(u, v)
-                    for shift in _family_shifts(domain):
-                        jobs.append(GeodesicJob(poly + shift, start_ground=u, end_ground=v))
-                        owner.append(n)
-                    family.add(n)
-                    continue
                 if (u < ng) == (v < ng):  # point to point, or boundary to boundary
                     jobs.append(GeodesicJob(route(u, v), start_ground=u if u < ng else None,
                                             end_ground=v if v < ng else None))
@@ -533,14 +539,25 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
             for n, rp in zip(owner, refined):
                 if out[n] is None or rp.length < out[n].length:
                     out[n] = rp
-            for n in family:
-                out[n] = _best_of_starts([rp for o, rp in zip(owner, refined) if o == n])
             for n, (u, v) in enumerate(keys):
                 if (u < ng) != (v < ng) and u < ng:  # from the boundary to a point: the curve runs backwards
                     rp = out[n]
                     out[n] = RefinedPath(rp.points[::-1].copy(), rp.length, rp.upper, rp.error_estimate,
                                          rp.segments)
             return out
+
+        def finish(keys, cache):
+            # a chosen curve with both ends free around a circle: rotations along the circle nearly preserve its
+            # length, so it is refined again from its route shifted by fractions of an edge (see _family_shifts)
+            keys = [k for k in keys if k[0] < ng and k[1] < ng and domain.periodic[0]]
+            jobs, owner = [], []
+            for k in keys:
+                poly = route(*k)
+                for shift in _family_shifts(domain):
+                    jobs.append(GeodesicJob(poly + shift, start_ground=k[0], end_ground=k[1]))
+                    owner.append(k)
+            refined = refine_many(domain, metric, jobs, tol=tol, atol=atol) if jobs else []
+            return {k: _best_of_starts([cache[k]] + [rp for o, rp in zip(owner, refined) if o == k]) for k in keys}
 
         def polyline(key):
             return route(*key)
@@ -552,7 +569,7 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
     grid_value, grid_chosen = solve(grid_costs)
     atol = 0.1 * tol * grid_value / max(1, len(domain.points))
     if do_refine:
-        value, chosen, cache = _settle(grid_costs, solve, refine_keys, bias)
+        value, chosen, cache = _settle(grid_costs, solve, refine_keys, bias, finish)
     else:
         value, chosen, cache = grid_value, grid_chosen, {}
     curves = []
