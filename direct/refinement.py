@@ -654,12 +654,13 @@ def _lbfgs_polish(domain: Domain, metric: Metric, par: _Parametrization, X: np.n
 
     z = par.pack(X)
     f0 = max(float(segment_lengths(metric, comps, X[:-1], X[1:]).sum()), 1e-300)
+    Mt = par.M.T.tocsr()  # once, not at every evaluation
 
     def fun(zz):
         XX = unpack(par.clip(zz.copy()))
         fl, gl, _ = _segment_derivatives(metric, comps, XX[:-1], XX[1:], 1e-6 * scale, hessian=False)
         gX = np.bincount(loc.ravel(), weights=gl.ravel(), minlength=2 * (n + 1))
-        return float(fl.sum()) / f0, (par.M.T @ gX) / f0
+        return float(fl.sum()) / f0, (Mt @ gX) / f0
 
     wide = 10.0 * scale
     bounds = [(float(zk) - wide, float(zk) + wide) for zk in z]
