@@ -104,3 +104,17 @@ def test_a_refraction_vertex_on_a_crease_does_not_pin_the_curve():
         a = direct.penalty(scene, tol=1e-5, resolution=96)
         b = direct.penalty(scene, tol=1e-5, resolution=128)
     assert abs(a.value - b.value) <= a.error_estimate + b.error_estimate
+
+
+def test_drop_folds_removes_free_vertices_that_turn_back_and_keeps_the_rest():
+    from direct.refinement import _drop_folds
+
+    X = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.0], [1.5, 0.0], [3.0, 0.0], [4.0, 1.0]])
+    modes = ["fixed", "free", "free", "free", ("line",), "fixed"]
+    Y, m = _drop_folds(X, modes)
+    d = np.diff(Y, axis=0)
+    assert ((d[:-1] * d[1:]).sum(axis=1) >= 0).all()
+    assert np.array_equal(Y[0], X[0]) and np.array_equal(Y[-1], X[-1])  # the ends stay
+    assert ("line",) in m  # only free vertices go
+    smooth = np.column_stack([np.linspace(0, 1, 9), np.linspace(0, 1, 9) ** 2])
+    assert np.array_equal(_drop_folds(smooth, ["fixed"] + ["free"] * 7 + ["fixed"])[0], smooth)
