@@ -260,11 +260,10 @@ def closed_curve_distances(graph: GridGraph, max_bases: int = 24, most: int = 1,
     Returns
     -------
     dict
-        ``{(a, b): (length, polyline)}`` for the eight classes with ``|a|, |b| <= 1``;
-        the polyline (parameters) ends at its start shifted by ``(a S, b V)`` in
-        local coordinates.  Opposite classes are the same curves run backwards.
-        With ``most > 1`` each value is a list of such pairs instead, the
-        shortest first.
+        ``{(a, b): [(length, polyline), ...]}`` for the eight classes with
+        ``|a|, |b| <= 1``, at most ``most`` curves each, the shortest first;
+        each polyline (parameters) ends at its start shifted by ``(a S, b V)``
+        in local coordinates.  Opposite classes are the same curves run backwards.
     """
     N = graph.n_nodes
     M = _cover_matrix(graph)
@@ -275,10 +274,9 @@ def closed_curve_distances(graph: GridGraph, max_bases: int = 24, most: int = 1,
         on_seam = np.flatnonzero(np.isfinite(grid[:, 0]) & np.isclose(grid[:, axis], 0.0))
         on_seam = on_seam[np.unique(np.linspace(0, len(on_seam) - 1, min(max_bases, len(on_seam))).astype(int))]
         src = on_seam + N * centre
-        targets = {c: on_seam + N * _COVER.index(c) for c in classes}
         dist, node_route = _shortest(M, src, "scipy")
         for a, b in classes:
-            tgt = targets[(a, b)]
+            tgt = on_seam + N * _COVER.index((a, b))
             d = dist[np.arange(len(src)), tgt]
             # the base points where the grid length is a local minimum along the (periodic) seam, best first
             is_min = (d <= np.roll(d, 1)) & (d <= np.roll(d, -1)) & np.isfinite(d)
@@ -287,6 +285,6 @@ def closed_curve_distances(graph: GridGraph, max_bases: int = 24, most: int = 1,
             if len(picked) == 0:
                 picked = np.array([int(np.argmin(d))])
             found = [(float(d[k]), _cover_polyline(graph, node_route(k, tgt[k]))) for k in picked]
-            back = [(length, poly[::-1].copy()) for length, poly in found]
-            out[(a, b)], out[(-a, -b)] = (found, back) if most > 1 else (found[0], back[0])
+            out[(a, b)] = found
+            out[(-a, -b)] = [(length, poly[::-1].copy()) for length, poly in found]
     return out

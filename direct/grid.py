@@ -541,8 +541,6 @@ def build_graph(
         p, d, own = np.vstack(starts), np.vstack(dirs), np.concatenate(owners)
         t, which = domain.exit_time(p, d)
         good = np.isfinite(t)
-        # no move longer than the domain across (a diagonal nearly along a periodic axis would wind around it)
-        good[good] = (np.abs(t[good, None] * d[good]) <= np.array([S, V]) * (1 + 1e-12)).all(axis=1)
         add(cross_nodes[own[good]], which[good], p[good], p[good] + t[good, None] * d[good], True,
             np.zeros((good.sum(), 2), dtype=np.int64))
         if n_pts > 1:

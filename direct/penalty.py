@@ -70,7 +70,6 @@ admissible deformation.
 
 from __future__ import annotations
 
-import math
 import time
 import warnings
 from dataclasses import dataclass, field
@@ -397,8 +396,19 @@ def _family_shifts(domain: Domain) -> list[np.ndarray]:
     """
     axis = domain.basis[:, 0]
     comp = domain.comps[int(np.flatnonzero(axis)[0])]
-    edge = float(np.mean(np.diff(comp.params)))
+    edge = comp.length / comp.n_segments
     return [f * edge * axis for f in _FAMILY_SHIFTS]
+
+
+def _more_starts(domain: Domain, metric: Metric, starts: dict, cache: dict, tol: float, atol: float) -> dict:
+    """Refine entries again from more starts, all in one batch: ``{key: RefinedPath}`` (see :func:`_best_of_starts`).
+
+    ``starts`` maps each entry to its further jobs; ``cache`` holds its first refined curve.
+    """
+    starts = {k: jobs for k, jobs in starts.items() if jobs}
+    refined = iter(refine_many(domain, metric, [j for jobs in starts.values() for j in jobs], tol=tol, atol=atol)
+                   if starts else [])
+    return {k: _best_of_starts([cache[k]] + [next(refined) for _ in jobs]) for k, jobs in starts.items()}
 
 
 def _best_of_starts(found: list[RefinedPath]) -> RefinedPath:
@@ -436,8 +446,7 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
         grid_costs = {
             (i, j, c): float(T[c][neg[j], pos[i]]) for c in T for i in range(len(pos)) for j in range(len(neg))
         }
-        loops = {c: found if isinstance(found, list) else [found]
-                 for c, found in closed_curve_distances(graph, most=_CLOSED_STARTS).items()}
+        loops = closed_curve_distances(graph, most=_CLOSED_STARTS)
         for c, found in loops.items():
             grid_costs[("closed", c)] = found[0][0]
 
@@ -458,14 +467,9 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
 
         def finish(keys, cache):
             # a chosen closed curve again from the grid's other closed curves of its class (closed_curve_distances)
-            keys = [k for k in keys if k[0] == "closed" and len(loops[k[1]]) > 1]
-            jobs, owner = [], []
-            for k in keys:
-                for _, p in loops[k[1]][1:]:
-                    jobs.append(GeodesicJob(np.asarray(p, dtype=float), closed=True))
-                    owner.append(k)
-            refined = refine_many(domain, metric, jobs, tol=tol, atol=atol) if jobs else []
-            return {k: _best_of_starts([cache[k]] + [rp for o, rp in zip(owner, refined) if o == k]) for k in keys}
+            starts = {k: [GeodesicJob(np.asarray(p, dtype=float), closed=True) for _, p in loops[k[1]][1:]]
+                      for k in keys if k[0] == "closed"}
+            return _more_starts(domain, metric, starts, cache, tol, atol)
 
         def ends(key):
             if key[0] == "closed":
@@ -549,15 +553,11 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
         def finish(keys, cache):
             # a chosen curve with both ends free around a circle: rotations along the circle nearly preserve its
             # length, so it is refined again from its route shifted by fractions of an edge (see _family_shifts)
-            keys = [k for k in keys if k[0] < ng and k[1] < ng and domain.periodic[0]]
-            jobs, owner = [], []
-            for k in keys:
-                poly = route(*k)
-                for shift in _family_shifts(domain):
-                    jobs.append(GeodesicJob(poly + shift, start_ground=k[0], end_ground=k[1]))
-                    owner.append(k)
-            refined = refine_many(domain, metric, jobs, tol=tol, atol=atol) if jobs else []
-            return {k: _best_of_starts([cache[k]] + [rp for o, rp in zip(owner, refined) if o == k]) for k in keys}
+            starts = {}
+            if domain.periodic[0]:
+                starts = {k: [GeodesicJob(route(*k) + shift, start_ground=k[0], end_ground=k[1])
+                              for shift in _family_shifts(domain)] for k in keys if k[0] < ng and k[1] < ng}
+            return _more_starts(domain, metric, starts, cache, tol, atol)
 
         def polyline(key):
             return route(*key)
@@ -750,8 +750,6 @@ def _penalty(scene, metric, power, tol, resolution, neighbours, backend, refine,
             ToleranceWarning,
             stacklevel=3,
         )
-    if not refine and total > 0:
-        err_total = math.nan  # the grid value's bias is not estimated: say so rather than claim 0
     return Penalty(
         value=float(total),
         error_estimate=float(err_total),
