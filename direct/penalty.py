@@ -175,8 +175,8 @@ class Penalty:
         the refined geodesics (:func:`direct.refinement.refine_many`), plus
         the spread between the two solutions where a second pass runs; 0
         when there is no crossing.  NaN with ``refine=False``: the grid value
-        has no estimate (its stencil and sampling bias reach 2 to 9 % on the
-        cases of ``validation/failures.md``, with either sign possible).
+        has no estimate (its stencil and sampling bias reach 9 % on the cases
+        of ``validation/failures.md``).
     grid_value : float
         The same program solved with the grid (Dijkstra) distances alone.
     crossings : list of Crossing
