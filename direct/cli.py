@@ -2,7 +2,7 @@
 
 Usage::
 
-    direct penalty SCENE [--metric {G,g,euclid}] [--power P] [--tol TOL] [--resolution N]
+    direct penalty SCENE [--metric {G,g,euclid}] [--power P] [--tol TOL] [--resolution N] [--coarsen C]
                          [--neighbours {8,16,32}] [--backend {scipy,networkx}] [--no-refine] [--json]
     direct plot SCENE -o FIG.png [same options as penalty, without --json]
     direct scenes
@@ -51,6 +51,10 @@ def _add_method_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--tol", type=float, default=1e-3, help="relative tolerance of each refined geodesic (default 1e-3)")
     p.add_argument(
         "--resolution", type=int, default=128, metavar="N", help="grid cells along the longer side of a domain (128)"
+    )
+    p.add_argument(
+        "--coarsen", type=int, default=4, metavar="C",
+        help="grid C times coarser away from the crossing points (default 4; 1: uniform grid)",
     )
     p.add_argument("--neighbours", type=int, choices=[8, 16, 32], default=16, help="grid stencil (default 16)")
     p.add_argument("--backend", choices=["scipy", "networkx"], default="scipy", help="shortest-path backend")
@@ -116,6 +120,7 @@ def _compute(args: argparse.Namespace):
         tol=args.tol,
         resolution=args.resolution,
         neighbours=args.neighbours,
+        coarsen=args.coarsen,
         backend=args.backend,
         refine=args.refine,
         second_pass={"auto": None, "on": True, "off": False}[args.second_pass],
@@ -186,13 +191,14 @@ def summary(scene, result) -> str:
     s = result.settings
     metric = ", ".join(
         f"{k}={v}" for k, v in s.items()
-        if k not in ("metric", "tol", "resolution", "neighbours", "backend", "refine", "second_pass",
+        if k not in ("metric", "tol", "resolution", "neighbours", "coarsen", "backend", "refine", "second_pass",
                      "grazing_second_pass")
     )
     grazing = s.get("grazing_second_pass")
     lines.append(
         f"metric: {s.get('metric')}{f' ({metric})' if metric else ''}; tol={s.get('tol')}, "
-        f"resolution={s.get('resolution')}, neighbours={s.get('neighbours')}, backend={s.get('backend')}, "
+        f"resolution={s.get('resolution')} (coarsen {s.get('coarsen')}), neighbours={s.get('neighbours')}, "
+        f"backend={s.get('backend')}, "
         f"refine={s.get('refine')}, second pass={s.get('second_pass')}"
         + (f" (grazing crossings: second pass on {grazing} domain{'s' if grazing > 1 else ''})" if grazing else "")
     )

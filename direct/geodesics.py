@@ -92,6 +92,17 @@ def _bounded_shortest(matrix: sp.csr_matrix, sources: np.ndarray, bound: float):
     return dist, _paths_from_predecessors(pred, sources)
 
 
+def _side_of(domain, st: np.ndarray) -> np.ndarray:
+    """Which side of the domain's boundary each point ``st`` (local coordinates, on the boundary) lies on."""
+    S, V = domain.local_lengths
+    dist = [np.abs(st[:, 1]), np.abs(st[:, 1] - V)]
+    if not domain.periodic[0]:
+        dist += [np.abs(st[:, 0]), np.abs(st[:, 0] - S)]
+    if domain.kind == "triangle":
+        dist.append(np.abs(st[:, 1] - st[:, 0]) / np.sqrt(2))
+    return np.argmin(np.column_stack(dist), axis=1)
+
+
 def grid_distances(
     graph: GridGraph, backend: Backend = "scipy", bound: float | None = None
 ) -> tuple[np.ndarray, callable]:
@@ -145,22 +156,32 @@ def grid_distances(
         # order the exits along the boundary, then keep the local minima of the cost: one per basin
         dom = graph.domain
         if dom.kind in ("cylinder", "annulus"):
-            key, periodic = ends[:, 0], True
+            key = ends[:, 0]
         else:  # the boundary of a rectangle or triangle is star-shaped about its centroid
             centre = np.nanmean(ends, axis=0) if dom.kind == "torus" else np.array(dom.local_lengths) / 2
             if dom.kind == "triangle":
                 centre = np.array([dom.local_lengths[0] / 3, 2 * dom.local_lengths[1] / 3])
-            key, periodic = np.arctan2(ends[:, 1] - centre[1], ends[:, 0] - centre[0]), True
+            key = np.arctan2(ends[:, 1] - centre[1], ends[:, 0] - centre[0])
         order = np.argsort(key, kind="stable")
         c = cost[order]
+        e = ends[order]
+        side = _side_of(dom, e)
         n = len(c)
         is_min = np.ones(n, dtype=bool)
-        for shift in (1, 2, 3):
+        # a local minimum beats its three neighbours on each side, and every exit on its side of the boundary
+        # within two fine cells of it (a node has several exits: next to a refined patch three neighbours can be a
+        # fraction of a cell); not across a corner, where a grazing crossing's geodesic has a basin on each side
+        near = 2.0 * graph.cell
+        for shift in range(1, n):
+            within = np.zeros(n, dtype=bool)
             for sgn in (1, -1):
-                nb = np.roll(c, sgn * shift) if periodic else np.concatenate([c, np.full(shift, np.inf)])
-                if not periodic:
-                    nb = np.roll(nb, sgn * shift)[:n]
-                is_min &= c <= nb
+                nb = np.roll(c, sgn * shift)
+                close = ((np.abs(np.roll(e, sgn * shift, axis=0) - e) <= near).all(axis=1)
+                         & (np.roll(side, sgn * shift) == side))
+                within |= close
+                is_min &= (c <= nb) | ~(close | (shift <= 3))
+            if not within.any() and shift >= 3:
+                break
         best = cost.min()
         picked = order[is_min & (c <= (1 + margin) * best)]
         picked = picked[np.argsort(cost[picked])][:most]

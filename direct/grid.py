@@ -26,14 +26,19 @@ diagonal (``B_0^-`` of section 3.3.3), ``v -> L`` the other side.
 
 The grid graph of a domain has
 
-* a node per grid point strictly inside (uniform steps in ``(s, v)``);
+* a node per grid point strictly inside (uniform steps in the grid coordinate
+  of ``(s, v)``), or with ``coarsen > 1`` (local refinement) only the
+  points of a lattice ``coarsen`` times coarser, plus every grid point in a
+  patch around each crossing point and on the coarse cells where ``rho``
+  varies by more than a factor ``ratio``;
 * a *ground* node per boundary part (indices ``0 .. n_grounds - 1``);
 * a node per crossing point, joined to the grid nodes of its neighbourhood,
   to the crossing points nearby, and to the boundary by straight moves
   along the local axes and, in a rectangle or triangle, along the four
   diagonals in deformed arclength (one of them follows the valley of
   ``rho`` out of the point);
-* an edge per stencil move (8, 16 or 32 neighbours) whose weight is the exact
+* an edge per stencil move (8, 16 or 32 neighbours; scaled by ``coarsen``
+  between the nodes of the coarse lattice) whose weight is the exact
   metric length of the straight segment (:func:`direct.metric.segment_lengths`).
   A move that leaves the domain is cut where it leaves and joined to that
   ground.  On periodic axes moves wrap around; each edge records how many
@@ -252,7 +257,14 @@ class GridGraph:
         Signed number of times each edge, taken from ``rows`` to ``cols``,
         crosses the seams ``s = 0`` and ``v = 0`` of periodic axes.
     shape : tuple of int
-        Number of grid cells along ``s`` and ``v``.
+        Number of grid cells along ``s`` and ``v`` (of the fine lattice).
+    coarsen : int
+        Step of the coarse lattice in fine cells (1: a uniform grid; see :func:`build_graph`).
+    cell : (2,) ndarray
+        Largest fine cell sides along ``s`` and ``v`` (local coordinates).
+    ticks : tuple of two ndarrays
+        Positions of the fine lattice lines along ``s`` and ``v`` (local coordinates, ``shape[k] + 1`` each):
+        grid node ``(i, j)`` sits at ``(ticks[0][i], ticks[1][j])``.
     """
 
     domain: Domain
@@ -267,6 +279,9 @@ class GridGraph:
     neighbours: int
     metric: Metric
     shape: tuple[int, int] = field(default=(0, 0))
+    coarsen: int = 1
+    cell: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    ticks: tuple = (np.zeros(0), np.zeros(0))
 
     @property
     def n_nodes(self) -> int:
@@ -387,6 +402,86 @@ def _ticks(knots, length: float, n_cells: int) -> np.ndarray:
     return t
 
 
+def _patches(ci: np.ndarray, cj: np.ndarray, reach: int, ns: int, nv: int, ps: bool, pv: bool) -> np.ndarray:
+    """Lattice positions ``(i, j)`` (shape ``(ns + 1, nv + 1)``) within ``reach`` steps of a crossing point's cell.
+
+    The cell ``(ci, cj)`` of a point has the corners ``ci, ci + 1``; the
+    patch takes ``reach`` more on each side, wrapped on periodic axes and cut
+    at the ends of the others.
+    """
+    out = np.zeros((ns + 1, nv + 1), dtype=bool)
+    if len(ci) == 0:
+        return out
+    offs = np.arange(-reach, reach + 2)
+    rows = ci[:, None] + offs  # the box of each point: its rows times its columns
+    cols = cj[:, None] + offs
+    rows = np.mod(rows, ns) if ps else np.clip(rows, 0, ns)
+    cols = np.mod(cols, nv) if pv else np.clip(cols, 0, nv)
+    r = np.broadcast_to(rows[:, :, None], (len(ci), len(offs), len(offs)))
+    c = np.broadcast_to(cols[:, None, :], r.shape)
+    out[r, c] = True
+    if ps:
+        out[ns, :] = out[0, :]
+    if pv:
+        out[:, nv] = out[:, 0]
+    return out
+
+
+def _rough_cells(domain: Domain, metric: Metric, at, coarsen: int, ns: int, nv: int, ps: bool, pv: bool,
+                 ratio: float) -> np.ndarray:
+    """Lattice positions (shape ``(ns + 1, nv + 1)``) in the coarse cells where ``rho`` varies by more than ``ratio``.
+
+    ``rho`` (the metric's weight of ``|phi(x1) - phi(x2)|^2``) is sampled
+    every second fine node; a coarse cell is rough when the largest sample on
+    it exceeds ``ratio`` times the smallest.  Rough cells and their eight
+    neighbours are refined: geodesics follow the valleys of ``rho``.
+    """
+    if not np.isfinite(ratio):  # patches only
+        return np.zeros((ns + 1, nv + 1), dtype=bool)
+    step = 2 if coarsen % 2 == 0 else 1
+    si, sj = np.arange(0, ns + 1, step), np.arange(0, nv + 1, step)
+    ii, jj = np.meshgrid(si, sj, indexing="ij")
+    x = domain.to_param(at(ii.ravel(), jj.ravel()))
+    c1, c2 = domain.comps
+    r = c1.phi(x[:, 0]) - c2.phi(x[:, 1])
+    w = metric.weight(np.einsum("ij,ij->i", r, r)).reshape(ii.shape)
+    k = coarsen // step  # samples per coarse cell side
+    nI, nJ = ns // coarsen, nv // coarsen
+    hi = np.full((nI, nJ), -np.inf)
+    lo = np.full((nI, nJ), np.inf)
+    for a in range(k + 1):  # the (k + 1)^2 samples on each coarse cell, as strided views
+        for b in range(k + 1):
+            v = w[a:a + k * nI:k, b:b + k * nJ:k]
+            hi, lo = np.maximum(hi, v), np.minimum(lo, v)
+    rough = hi > ratio * lo
+    # the neighbours too (wrapped on periodic axes)
+    grown = rough.copy()
+    for axis, per in ((0, ps), (1, pv)):
+        for sgn in (1, -1):
+            sh = np.roll(grown, sgn, axis=axis)
+            if not per:
+                if axis == 0:
+                    sh[0 if sgn > 0 else -1, :] = False
+                else:
+                    sh[:, 0 if sgn > 0 else -1] = False
+            rough |= sh
+        grown = rough.copy()
+    # lattice positions on a rough cell: any of the (up to four) cells around the position
+    cells = np.repeat(np.repeat(rough, coarsen, axis=0), coarsen, axis=1)  # (ns, nv): fine cell -> its coarse cell
+    out = np.zeros((ns + 1, nv + 1), dtype=bool)
+    out[:-1, :-1] |= cells
+    out[1:, :-1] |= cells
+    out[:-1, 1:] |= cells
+    out[1:, 1:] |= cells
+    if ps:
+        out[0, :] |= out[ns, :]
+        out[ns, :] = out[0, :]
+    if pv:
+        out[:, 0] |= out[:, nv]
+        out[:, nv] = out[:, 0]
+    return out
+
+
 def _extended(ticks: np.ndarray, periodic: bool, idx: np.ndarray) -> np.ndarray:
     """Position of node index ``idx`` (any integer): periodic copies, or linear extension past the ends."""
     n = len(ticks) - 1
@@ -402,7 +497,8 @@ def _extended(ticks: np.ndarray, periodic: bool, idx: np.ndarray) -> np.ndarray:
 
 
 def build_graph(
-    domain: Domain, metric: Metric, resolution: int = 128, neighbours: int = 16, window: int = 2
+    domain: Domain, metric: Metric, resolution: int = 128, neighbours: int = 16, window: int = 2,
+    coarsen: int = 1, patch: int = 2, ratio: float = 4.0
 ) -> GridGraph:
     """Build the grid graph of a domain.
 
@@ -420,6 +516,26 @@ def build_graph(
         Stencil of the grid moves.
     window : int, default 2
         A crossing point is joined to the grid nodes within ``window`` cells.
+    coarsen : int, default 1
+        Local refinement.  With ``coarsen > 1`` the grid has the step of
+        ``resolution`` only in a patch around each crossing point; elsewhere
+        only every ``coarsen``-th node of that fine lattice is kept, joined by
+        the stencil's moves scaled by ``coarsen`` (the same directions, hence
+        the same angular bias, on a grid ``coarsen`` times coarser).  The
+        patches and the coarse lattice share their nodes, so a path leaves a
+        patch through a coarse node.  1 gives the uniform grid.  Must be 1 or
+        larger than the stencil's radius (2 for 16 neighbours).
+    patch : int, default 2
+        Half-width of each patch around a crossing point, in coarse cells
+        (used when ``coarsen > 1``).
+    ratio : float, default 4
+        With ``coarsen > 1``, a coarse cell (and its neighbours) is refined
+        too where the metric's weight ``rho`` varies by more than this
+        factor across it (sampled every second fine node): along the
+        diagonal of a triangle or annulus, where ``rho`` vanishes and
+        geodesics run in a valley one fine cell wide, and where two pieces
+        of the curve come close without crossing.  The coarse lattice is kept
+        only where ``rho`` is smooth at its scale.
 
     Returns
     -------
@@ -446,6 +562,12 @@ def build_graph(
         ns = max(ns, 2 * radius + 3)
     if pv:
         nv = max(nv, 2 * radius + 3)
+    coarsen = int(coarsen)
+    if coarsen != 1 and coarsen <= radius:
+        raise ValueError(f"coarsen must be 1 or larger than the stencil radius {radius}, got {coarsen}")
+    if coarsen > 1:  # whole coarse cells (the coarse lattice wraps onto itself), enough of them to hold a node
+        least = [2 * radius + 3 if per else 2 for per in (ps, pv)]  # and to keep the seams' edges distinct
+        ns, nv = (coarsen * max(-(-n // coarsen), m) for n, m in zip((ns, nv), least))
     ticks_s, ticks_v = _ticks(knots[0], S, ns), _ticks(knots[1], V, nv)
     h = np.array([S / ns, V / nv])
     cell = np.array([np.diff(ticks_s).max(), np.diff(ticks_v).max()])  # largest cell sides
@@ -454,13 +576,26 @@ def build_graph(
         """Local coordinates of node indices (unwrapped across seams, extended past the ends)."""
         return np.column_stack([_extended(ticks_s, ps, ti), _extended(ticks_v, pv, tj)])
 
+    pts = domain.to_local(domain.points) if len(domain.points) else np.empty((0, 2))
+    n_pts = len(pts)
+    ci = np.clip(np.searchsorted(ticks_s, pts[:, 0], side="right") - 1, 0, ns - 1)  # cell of each crossing point
+    cj = np.clip(np.searchsorted(ticks_v, pts[:, 1], side="right") - 1, 0, nv - 1)
     # grid nodes: a in [0, ns) if periodic else (0, ns); same for b
     a_range = np.arange(0, ns) if ps else np.arange(1, ns)
     b_range = np.arange(0, nv) if pv else np.arange(1, nv)
     A, B = np.meshgrid(a_range, b_range, indexing="ij")
     inside = (B > A) if domain.kind == "triangle" else np.ones_like(A, dtype=bool)
-    ii, jj = A[inside], B[inside]
-    node_of = np.full((ns + 1, nv + 1), -1, dtype=np.int64)
+    if coarsen > 1:
+        fine_at = _patches(ci, cj, patch * coarsen, ns, nv, ps, pv)  # (ns + 1, nv + 1): in a patch
+        fine_at |= _rough_cells(domain, metric, at, coarsen, ns, nv, ps, pv, ratio)
+        on_coarse = (A % coarsen == 0) & (B % coarsen == 0)
+        in_patch = fine_at[A, B]
+        kept = inside & (on_coarse | in_patch)
+    else:
+        kept = inside
+    ii, jj = A[kept], B[kept]
+    node_of = np.full((ns + 1, nv + 1), -1, dtype=np.int64)  # -1: outside the domain (or on its boundary)
+    node_of[A[inside & ~kept], B[inside & ~kept]] = -2  # -2: inside, but not a node of this grid
     node_of[ii, jj] = np.arange(ng, ng + len(ii))
     if ps:
         node_of[ns, :] = node_of[0, :]
@@ -469,8 +604,10 @@ def build_graph(
     node_flat = node_of.ravel()
     grid_st = at(ii, jj)
     n_grid = len(ii)
-    pts = domain.to_local(domain.points) if len(domain.points) else np.empty((0, 2))
-    n_pts = len(pts)
+    if coarsen > 1:
+        fine_src, coarse_src = in_patch[kept], on_coarse[kept]
+    else:
+        fine_src, coarse_src = np.ones(n_grid, dtype=bool), np.zeros(n_grid, dtype=bool)
     cross_nodes = np.arange(ng + n_grid, ng + n_grid + n_pts)
     coords = np.vstack([np.full((ng, 2), np.nan), grid_st, pts])
 
@@ -491,36 +628,42 @@ def build_graph(
 
     half = stencil(neighbours)
     full = np.vstack([half, -half])
-    src = np.arange(ng, ng + n_grid)
-    for k, (di, dj) in enumerate(full):
-        ti, tj = ii + di, jj + dj
-        q, kk = target(ti, tj)
-        interior = q >= ng
-        inn, out = interior.nonzero()[0], (~interior).nonzero()[0]
-        if k < len(half):  # each interior edge once
-            add(src.take(inn), q.take(inn), np.take(grid_st, inn, axis=0), at(ti.take(inn), tj.take(inn)), False,
+    node_ids = np.arange(ng, ng + n_grid)
+    is_fine_src = np.zeros(ng + n_grid, dtype=bool)
+    is_fine_src[ng:] = fine_src
+    # the fine moves from the patch nodes, then (coarsen > 1) the scaled moves from the coarse lattice
+    for scale, sel in ((1, fine_src), (coarsen, coarse_src)):
+        if not sel.any():
+            continue
+        src, si, sj, sst = node_ids[sel], ii[sel], jj[sel], grid_st[sel]
+        for k, (di, dj) in enumerate(full * scale):
+            ti, tj = si + di, sj + dj
+            q, kk = target(ti, tj)
+            interior = q >= ng
+            if k >= len(half):  # each interior edge once: the other half only towards nodes without these moves
+                interior &= ~is_fine_src.take(np.maximum(q, 0)) if scale == 1 else False
+            inn, out = interior.nonzero()[0], (q == -1).nonzero()[0]
+            add(src.take(inn), q.take(inn), np.take(sst, inn, axis=0), at(ti.take(inn), tj.take(inn)), False,
                 np.take(kk, inn, axis=0), grid=True)
-        if out.size:
-            p = np.take(grid_st, out, axis=0)
-            d = at(ti.take(out), tj.take(out)) - p
-            t, which = domain.exit_time(p, d)
-            t = np.minimum(t, 1.0)
-            add(src.take(out), which, p, p + t[:, None] * d, True, np.zeros((out.size, 2), dtype=np.int64))
+            if out.size:
+                p = np.take(sst, out, axis=0)
+                d = at(ti.take(out), tj.take(out)) - p
+                t, which = domain.exit_time(p, d)
+                t = np.minimum(t, 1.0)
+                add(src.take(out), which, p, p + t[:, None] * d, True, np.zeros((out.size, 2), dtype=np.int64))
 
     if n_pts:
-        ci = np.clip(np.searchsorted(ticks_s, pts[:, 0], side="right") - 1, 0, ns - 1)
-        cj = np.clip(np.searchsorted(ticks_v, pts[:, 1], side="right") - 1, 0, nv - 1)
         offs = np.arange(-window + 1, window + 1)
         oi, oj = np.meshgrid(offs, offs, indexing="ij")
         ti = (ci[:, None] + oi.ravel()[None, :]).ravel()
         tj = (cj[:, None] + oj.ravel()[None, :]).ravel()
         owner = np.repeat(np.arange(n_pts), oi.size)
         q, kk = target(ti, tj)
-        interior = q >= ng
+        interior, outside = q >= ng, q == -1
         tgt = at(ti, tj)
         add(cross_nodes[owner[interior]], q[interior], pts[owner[interior]], tgt[interior], False, kk[interior])
         # straight moves to a ground: towards each window node outside, along the local axes, to the diagonal
-        starts, dirs, owners = [pts[owner[~interior]]], [tgt[~interior] - pts[owner[~interior]]], [owner[~interior]]
+        starts, dirs, owners = [pts[owner[outside]]], [tgt[outside] - pts[owner[outside]]], [owner[outside]]
         axes = [[1, 0], [-1, 0], [0, 1], [0, -1]] + ([[1, -1]] if domain.kind == "triangle" else [])
         for ax in axes:
             starts.append(pts)
@@ -591,4 +734,7 @@ def build_graph(
         neighbours=neighbours,
         metric=metric,
         shape=(ns, nv),
+        coarsen=coarsen,
+        cell=cell,
+        ticks=(ticks_s, ticks_v),
     )

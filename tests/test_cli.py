@@ -39,7 +39,7 @@ def test_penalty_json_is_one_object(cross_value):
 
 
 def test_penalty_json_options_reach_penalty(capsys):
-    args = "penalty cross --json --metric g --power 1 --no-refine --resolution 24 --neighbours 8"
+    args = "penalty cross --json --metric g --power 1 --no-refine --resolution 24 --neighbours 8 --coarsen 1"
     assert main(args.split()) == 0
     data = json.loads(capsys.readouterr().out)
     assert data["settings"]["metric"] == "g"
@@ -47,6 +47,7 @@ def test_penalty_json_options_reach_penalty(capsys):
     assert data["settings"]["refine"] is False
     assert data["settings"]["resolution"] == 24
     assert data["settings"]["neighbours"] == 8
+    assert data["settings"]["coarsen"] == 1
     assert data["value"] == data["grid_value"]
     # the grid value carries no estimate of its few-per-cent bias: null, not a claimed 0
     assert data["error_estimate"] is None

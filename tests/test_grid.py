@@ -9,7 +9,7 @@ from scipy.integrate import quad
 
 import direct
 from direct.geodesics import grid_distances
-from direct.grid import Domain, build_graph, stencil
+from direct.grid import Domain, _rough_cells, build_graph, stencil
 from direct.metric import G, GFamily, get_metric, segment_lengths
 from direct.penalty import domains
 
@@ -82,12 +82,13 @@ def test_stencil_sizes(n, expected):
     assert len({tuple(v) for v in np.vstack([half, -half])}) == n
 
 
+@pytest.mark.parametrize("coarsen", [1, 4])
 @pytest.mark.parametrize("seed", range(3))
-def test_scipy_and_networkx_distances_identical(seed):
+def test_scipy_and_networkx_distances_identical(seed, coarsen):
     sc = random_crossing_scene(seed, n_vert=6, min_crossings=2)
     met = get_metric("G")
     for dom in domains(sc, direct.find_crossings(sc)):
-        g = build_graph(dom, met, resolution=30)
+        g = build_graph(dom, met, resolution=32, coarsen=coarsen)
         Ta, route = grid_distances(g, "scipy")
         Tb, _ = grid_distances(g, "networkx")
         np.testing.assert_allclose(Ta, Tb, rtol=1e-12)
@@ -121,13 +122,14 @@ def test_triangle_domain_has_diagonal_as_boundary():
     assert dom.boundary_distance(np.array([[0.2, 0.25]]))[0] == pytest.approx(0.05 / np.sqrt(2))
 
 
+@pytest.mark.parametrize("coarsen", [1, 4])
 @pytest.mark.parametrize("seed", range(3))
-def test_bounded_searches_keep_every_entry_program_34_can_use(seed):
+def test_bounded_searches_keep_every_entry_program_34_can_use(seed, coarsen):
     """Searches stopped at ``bound * (d_a + max d_b)`` lose only pairs dearer than two boundary curves."""
     sc = random_crossing_scene(seed, n_vert=6, min_crossings=3)
     met = get_metric("G")
     for dom in domains(sc, direct.find_crossings(sc)):
-        g = build_graph(dom, met, resolution=40)
+        g = build_graph(dom, met, resolution=40, coarsen=coarsen)
         full, _ = grid_distances(g)
         for bound in (1.0, 1.5):
             part, route = grid_distances(g, bound=bound)
@@ -253,3 +255,69 @@ def test_segment_lengths_in_blocks_are_the_same():
     f, g = segment_lengths(met, comps, P, Q, gradient=True)
     np.testing.assert_allclose(f, whole, rtol=1e-12)
     assert g.shape == (m, 4) and np.isfinite(g).all()
+
+
+@pytest.mark.parametrize("scene", ["random", "nested", "fig11"])
+def test_locally_refined_grid_is_fine_around_crossings_and_coarse_elsewhere(scene):
+    """``coarsen=4``: the fine lattice near each crossing point and where rho is rough, every 4th node elsewhere.
+
+    Far fewer nodes than the uniform grid, and the distances, being lengths of real curves of the same plane,
+    close to the uniform grid's.
+    """
+    sc = random_crossing_scene(5, n_vert=6, min_crossings=3) if scene == "random" else direct.scenes.get(scene)
+    met = get_metric("G")
+    reach = 2 * 4  # patch=2 coarse cells of 4
+    for dom in domains(sc, direct.find_crossings(sc)):
+        fine = build_graph(dom, met, resolution=128)
+        local = build_graph(dom, met, resolution=128, coarsen=4)
+        assert local.coarsen == 4 and all(n % 4 == 0 for n in local.shape)
+        grid = lambda g: np.setdiff1d(np.arange(g.n_grounds, g.n_nodes), g.crossing_nodes)  # noqa: E731
+        # each node sits on the fine lattice: at (ticks[0][i], ticks[1][j])
+        X = local.coords[grid(local)]
+        idx = np.column_stack([np.searchsorted(local.ticks[k], X[:, k] - 1e-12) for k in (0, 1)])
+        for k in (0, 1):
+            np.testing.assert_allclose(local.ticks[k][idx[:, k]], X[:, k], atol=1e-12)
+        if len(dom.points) == 0:
+            continue
+        assert len(grid(local)) < 0.6 * len(grid(fine))
+        # a node off the coarse lattice lies within the patch of a crossing point or on a cell where rho is rough
+        def at(a, b, g=local):
+            return np.column_stack([g.ticks[0][np.mod(a, g.shape[0])], g.ticks[1][np.mod(b, g.shape[1])]])
+
+        rough = _rough_cells(dom, met, at, 4, *local.shape, *dom.periodic, 4.0)
+        pts = dom.to_local(dom.points)
+        cell = np.column_stack([np.searchsorted(local.ticks[k], pts[:, k], side="right") - 1 for k in (0, 1)])
+        n = np.array(local.shape)
+        gap = np.abs(idx[:, None, :] - cell[None, :, :])
+        for k in (0, 1):
+            if dom.periodic[k]:
+                gap[..., k] = np.minimum(gap[..., k], n[k] - gap[..., k])
+        near = (gap <= reach + 1).all(axis=2).any(axis=1)
+        on_coarse = (idx % 4 == 0).all(axis=1)
+        assert (near | on_coarse | rough[idx[:, 0], idx[:, 1]]).all() and (~on_coarse).any()
+        # grid distances from each point to the boundary: real curves, a few % apart
+        if dom.kind == "torus":
+            continue
+        Tf, _ = grid_distances(fine)
+        Tl, _ = grid_distances(local)
+        ng = dom.n_grounds
+        d_f, d_l = Tf[ng:, :ng].min(axis=1), Tl[ng:, :ng].min(axis=1)
+        np.testing.assert_allclose(d_l, d_f, rtol=0.05)
+
+
+@pytest.mark.parametrize("seed,kind", [(33, "triangle"), (1, "rect")])
+def test_the_valleys_of_rho_are_refined(seed, kind):
+    """Where rho is small away from the crossing points (along the diagonal of a triangle, where two pieces of the
+    curve come close) geodesics run down valleys a few fine cells wide.  Patches around the crossing points alone
+    made a point's curve to the boundary 48 % (triangle) and 30 % (rectangle) longer than on the uniform grid;
+    refining where rho is rough keeps every entry program (34) can use within 1 %."""
+    sc = random_crossing_scene(seed, n_vert=6, min_crossings=2)
+    met = get_metric("G")
+    dom = [d for d in domains(sc, direct.find_crossings(sc)) if d.kind == kind and len(d.points)][0]
+    fine, _ = grid_distances(build_graph(dom, met, resolution=128))
+    local, _ = grid_distances(build_graph(dom, met, resolution=128, coarsen=4))
+    patches_only, _ = grid_distances(build_graph(dom, met, resolution=128, coarsen=4, ratio=np.inf))
+    useful = np.isfinite(fine) & (fine > 0) & (fine < fine[:, :1] + fine[:1, :])  # cheaper than two boundary curves
+    useful[0, 0] = False
+    assert (patches_only[useful] / fine[useful]).max() > 1.25
+    assert (local[useful] / fine[useful]).max() <= 1.01
