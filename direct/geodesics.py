@@ -172,12 +172,12 @@ def grid_distances(
         # within two fine cells of it (a node has several exits: next to a refined patch three neighbours can be a
         # fraction of a cell); not across a corner, where a grazing crossing's geodesic has a basin on each side
         near = 2.0 * graph.cell
+        c3, e3, side3 = (np.concatenate([x, x, x]) for x in (c, e, side))  # cyclic neighbours by slicing
         for shift in range(1, n):
             within = np.zeros(n, dtype=bool)
-            for sgn in (1, -1):
-                nb = np.roll(c, sgn * shift)
-                close = ((np.abs(np.roll(e, sgn * shift, axis=0) - e) <= near).all(axis=1)
-                         & (np.roll(side, sgn * shift) == side))
+            for lo in (n - shift, n + shift):  # the exits ``shift`` places before, then after, each exit
+                nb = c3[lo:lo + n]
+                close = (np.abs(e3[lo:lo + n] - e) <= near).all(axis=1) & (side3[lo:lo + n] == side)
                 within |= close
                 is_min &= (c <= nb) | ~(close | (shift <= 3))
             if not within.any() and shift >= 3:

@@ -10,7 +10,7 @@ runs made on different days.
 Methods, on the 60-degree crossing (``J^G`` known from shared/NUMERICS.md):
 
 * ``direct``: the pipeline (grid Dijkstra, then refined geodesics) at several tolerances;
-* ``dijkstra-8``, ``dijkstra-16``: grid Dijkstra alone at several resolutions;
+* ``dijkstra-8``, ``dijkstra-16``: grid Dijkstra alone at several resolutions (uniform grids);
 * ``networkx``: the same grid with networkx's Dijkstra (the straightforward implementation:
   a networkx graph, a full search from every terminal, program (34), no refinement);
 * ``skfmm-1``, ``skfmm-2``: scikit-fmm fast marching (orders 1 and 2) on the same
@@ -105,11 +105,12 @@ def main() -> list[dict]:
                          rel_error=abs(res.value - EXACT) / EXACT, seconds=dt))
     for nb in (8, 16):
         for resolution in (24, 48, 96, 192, 384):
-            res, dt = timed(direct.penalty, scene, refine=False, neighbours=nb, resolution=resolution, repeat=2)
+            res, dt = timed(direct.penalty, scene, refine=False, neighbours=nb, resolution=resolution, coarsen=1,
+                            repeat=2)
             rows.append(dict(method=f"dijkstra-{nb}", setting=f"N={resolution}", value=res.value,
                              rel_error=abs(res.value - EXACT) / EXACT, seconds=dt))
     for resolution in (24, 48, 96):
-        res, dt = timed(direct.penalty, scene, refine=False, backend="networkx", resolution=resolution)
+        res, dt = timed(direct.penalty, scene, refine=False, backend="networkx", resolution=resolution, coarsen=1)
         rows.append(dict(method="networkx", setting=f"N={resolution}", value=res.value,
                          rel_error=abs(res.value - EXACT) / EXACT, seconds=dt))
     try:
