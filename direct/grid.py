@@ -531,11 +531,11 @@ def build_graph(
     ratio : float, default 4
         With ``coarsen > 1``, a coarse cell (and its neighbours) is refined
         too where the metric's weight ``rho`` varies by more than this
-        factor across it (sampled every second fine node): along the
-        diagonal of a triangle or annulus, where ``rho`` vanishes and
-        geodesics run in a valley one fine cell wide, and where two pieces
-        of the curve come close without crossing.  The coarse lattice is kept
-        only where ``rho`` is smooth at its scale.
+        factor across it (sampled every second fine node): geodesics follow
+        the valleys of ``rho`` (along the diagonal of a triangle or annulus,
+        where it vanishes, and where two pieces of the curve come close),
+        some narrower than a coarse cell.  The coarse lattice is kept only
+        where ``rho`` is smooth at its scale.
 
     Returns
     -------

@@ -307,8 +307,8 @@ def test_locally_refined_grid_is_fine_around_crossings_and_coarse_elsewhere(scen
 
 @pytest.mark.parametrize("seed,kind", [(33, "triangle"), (1, "rect")])
 def test_the_valleys_of_rho_are_refined(seed, kind):
-    """Where rho is small away from the crossing points (along the diagonal of a triangle, where two pieces of the
-    curve come close) geodesics run down valleys a few fine cells wide.  Patches around the crossing points alone
+    """Geodesics follow the valleys of rho (along the diagonal of a triangle, where it vanishes, and elsewhere),
+    some narrower than a coarse cell.  Patches around the crossing points alone
     made a point's curve to the boundary 48 % (triangle) and 30 % (rectangle) longer than on the uniform grid;
     refining where rho is rough keeps every entry program (34) can use within 1 %."""
     sc = random_crossing_scene(seed, n_vert=6, min_crossings=2)
