@@ -586,7 +586,7 @@ def build_graph(
     A, B = np.meshgrid(a_range, b_range, indexing="ij")
     inside = (B > A) if domain.kind == "triangle" else np.ones_like(A, dtype=bool)
     if coarsen > 1:
-        fine_at = _patches(ci, cj, patch * coarsen, ns, nv, ps, pv)  # (ns + 1, nv + 1): in a patch
+        fine_at = _patches(ci, cj, max(patch * coarsen, window), ns, nv, ps, pv)  # in a patch (at least the window)
         fine_at |= _rough_cells(domain, metric, at, coarsen, ns, nv, ps, pv, ratio)
         on_coarse = (A % coarsen == 0) & (B % coarsen == 0)
         in_patch = fine_at[A, B]

@@ -321,3 +321,19 @@ def test_the_valleys_of_rho_are_refined(seed, kind):
     useful[0, 0] = False
     assert (patches_only[useful] / fine[useful]).max() > 1.25
     assert (local[useful] / fine[useful]).max() <= 1.01
+
+
+def test_a_crossing_point_keeps_its_window_whatever_the_patch():
+    """With ``patch=0`` (and no rough cells) the patch still holds the crossing point's window of grid nodes."""
+    sc = direct.scenes.get("cross60")
+    met = get_metric("G")
+    (dom,) = domains(sc, direct.find_crossings(sc))
+    uniform = build_graph(dom, met, resolution=64)
+    bare = build_graph(dom, met, resolution=64, coarsen=4, patch=0, ratio=np.inf)
+
+    def grid_edges(g, node):
+        ends = np.concatenate([g.cols[g.rows == node], g.rows[g.cols == node]])
+        return int((ends >= g.n_grounds).sum())
+
+    for a, b in zip(uniform.crossing_nodes, bare.crossing_nodes):
+        assert grid_edges(bare, b) == grid_edges(uniform, a) > 0
