@@ -52,6 +52,7 @@ from functools import cached_property
 
 import numpy as np
 import scipy.sparse as sp
+from scipy.ndimage import maximum_filter
 
 from .metric import Metric, segment_lengths
 
@@ -260,8 +261,6 @@ class GridGraph:
         Number of grid cells along ``s`` and ``v`` (of the fine lattice).
     coarsen : int
         Step of the coarse lattice in fine cells (1: a uniform grid; see :func:`build_graph`).
-    cell : (2,) ndarray
-        Largest fine cell sides along ``s`` and ``v`` (local coordinates).
     ticks : tuple of two ndarrays
         Positions of the fine lattice lines along ``s`` and ``v`` (local coordinates, ``shape[k] + 1`` each):
         grid node ``(i, j)`` sits at ``(ticks[0][i], ticks[1][j])``.
@@ -280,8 +279,12 @@ class GridGraph:
     metric: Metric
     shape: tuple[int, int] = field(default=(0, 0))
     coarsen: int = 1
-    cell: np.ndarray = field(default_factory=lambda: np.zeros(2))
     ticks: tuple = (np.zeros(0), np.zeros(0))
+
+    @property
+    def cell(self) -> np.ndarray:
+        """Largest fine cell sides along ``s`` and ``v`` (local coordinates)."""
+        return np.array([np.diff(t).max() for t in self.ticks])
 
     @property
     def n_nodes(self) -> int:
@@ -453,19 +456,8 @@ def _rough_cells(domain: Domain, metric: Metric, at, coarsen: int, ns: int, nv: 
         for b in range(k + 1):
             v = w[a:a + k * nI:k, b:b + k * nJ:k]
             hi, lo = np.maximum(hi, v), np.minimum(lo, v)
-    rough = hi > ratio * lo
-    # the neighbours too (wrapped on periodic axes)
-    grown = rough.copy()
-    for axis, per in ((0, ps), (1, pv)):
-        for sgn in (1, -1):
-            sh = np.roll(grown, sgn, axis=axis)
-            if not per:
-                if axis == 0:
-                    sh[0 if sgn > 0 else -1, :] = False
-                else:
-                    sh[:, 0 if sgn > 0 else -1] = False
-            rough |= sh
-        grown = rough.copy()
+    # rough cells and their eight neighbours (wrapped on periodic axes)
+    rough = maximum_filter(hi > ratio * lo, size=3, mode=["wrap" if per else "constant" for per in (ps, pv)])
     # lattice positions on a rough cell: any of the (up to four) cells around the position
     cells = np.repeat(np.repeat(rough, coarsen, axis=0), coarsen, axis=1)  # (ns, nv): fine cell -> its coarse cell
     out = np.zeros((ns + 1, nv + 1), dtype=bool)
@@ -589,8 +581,8 @@ def build_graph(
         fine_at = _patches(ci, cj, max(patch * coarsen, window), ns, nv, ps, pv)  # in a patch (at least the window)
         fine_at |= _rough_cells(domain, metric, at, coarsen, ns, nv, ps, pv, ratio)
         on_coarse = (A % coarsen == 0) & (B % coarsen == 0)
-        in_patch = fine_at[A, B]
-        kept = inside & (on_coarse | in_patch)
+        fine = fine_at[A, B]
+        kept = inside & (on_coarse | fine)
     else:
         kept = inside
     ii, jj = A[kept], B[kept]
@@ -605,7 +597,7 @@ def build_graph(
     grid_st = at(ii, jj)
     n_grid = len(ii)
     if coarsen > 1:
-        fine_src, coarse_src = in_patch[kept], on_coarse[kept]
+        fine_src, coarse_src = fine[kept], on_coarse[kept]
     else:
         fine_src, coarse_src = np.ones(n_grid, dtype=bool), np.zeros(n_grid, dtype=bool)
     cross_nodes = np.arange(ng + n_grid, ng + n_grid + n_pts)
@@ -631,7 +623,8 @@ def build_graph(
     node_ids = np.arange(ng, ng + n_grid)
     is_fine_src = np.zeros(ng + n_grid, dtype=bool)
     is_fine_src[ng:] = fine_src
-    # the fine moves from the patch nodes, then (coarsen > 1) the scaled moves from the coarse lattice
+    # the fine moves from the fine nodes (patches, rough cells), then (coarsen > 1) the scaled moves from the coarse
+    # lattice
     for scale, sel in ((1, fine_src), (coarsen, coarse_src)):
         if not sel.any():
             continue
@@ -735,6 +728,5 @@ def build_graph(
         metric=metric,
         shape=(ns, nv),
         coarsen=coarsen,
-        cell=cell,
         ticks=(ticks_s, ticks_v),
     )

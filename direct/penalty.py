@@ -435,7 +435,7 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
     # local refinement on the pieces of two intervals only: around a circle the coarse lattice changed which closed
     # geodesic the figure eight settles in (fig10 at 128 cells: 6.2e-5 higher than every other grid, beyond the
     # estimate of 1.8e-5, and twice as slow), so domains with a circle keep the uniform grid
-    coarsen = settings.get("coarsen", 1) if domain.kind in ("rect", "triangle") else 1
+    coarsen = settings["coarsen"] if domain.kind in ("rect", "triangle") else 1
     graph = build_graph(domain, metric, settings["resolution"], settings["neighbours"], coarsen=coarsen)
     ng = domain.n_grounds
     pos = np.flatnonzero(domain.signs > 0)
