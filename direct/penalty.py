@@ -629,7 +629,7 @@ def penalty(
         Grid stencil.
     coarsen : int, default 4
         Local refinement of the grid: the step of ``resolution`` only in a
-        patch two coarse cells wide around each crossing point (where ``rho``
+        patch reaching two coarse cells around each crossing point (where ``rho``
         vanishes and the geodesics choose their way out), a lattice
         ``coarsen`` times coarser elsewhere (see
         :func:`direct.grid.build_graph`); refined too where ``rho`` varies by
