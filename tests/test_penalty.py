@@ -246,6 +246,23 @@ def test_second_pass_keeps_the_better_family_and_widens_the_estimate(seed):
     assert two.error_estimate >= abs(one.value - other.value) - 1e-12 * one.value
 
 
+def test_a_chosen_curve_is_checked_against_a_second_grids_route():
+    """Seed 138 of the multistart study: a curve between two crossing points has two local geodesics, one on each
+    side of a crease of the metric. Grids of 64 and 128 cells route it to the longer one (62 % longer), 96 and 192
+    to the shorter. Without a second start the default grid settles 7.7e-4 (relative) too high with an estimate of
+    3.3e-5; the route of a 96-cell grid, straightened at the coarse scale, is shorter and is refined too."""
+    scene = random_crossing_scene(138, n_comp=2, n_vert=7, min_crossings=1, max_crossings=10)
+    checked = direct.penalty(scene, tol=1e-4)
+    single = direct.penalty(scene, tol=1e-4, second_pass=False)
+    other = [direct.penalty(scene, tol=1e-4, resolution=r, second_pass=False) for r in (96, 192)]
+    best = min(r.value for r in other)
+    assert checked.settings["route_check"] and not single.settings["route_check"]
+    assert not direct.penalty(scene, tol=1e-5).settings["route_check"]  # the full second pass runs instead
+    assert single.value - best > 5e-4 * best > single.error_estimate  # the single start is silently off
+    assert abs(checked.value - best) <= checked.error_estimate
+    assert checked.error_estimate <= 1e-4 * checked.value
+
+
 def test_a_result_that_misses_its_tolerance_says_so():
     """The oracle never returns a number less accurate than asked without a warning: seed 138 of the
     multistart study has a geodesic whose levels still move by 8e-4 (relative) at the finest level."""
