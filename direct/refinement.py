@@ -159,47 +159,94 @@ def _project(domain: Domain, X: np.ndarray) -> np.ndarray:
     return X
 
 
+FIXED, FREE, SLIDE = 0, 1, 2
+
+
+class _Modes:
+    """How each vertex of a polyline may move, as arrays (one row per vertex).
+
+    ``kind[k]`` is ``FIXED`` (a crossing point), ``FREE`` (two unknowns) or
+    ``SLIDE``: the vertex slides on the line ``base[k] + tau e[k]`` with
+    ``lo[k] <= tau <= hi[k]`` (one unknown): a free end on the boundary, or a
+    refraction point on a line where the metric's norm jumps.  ``base``,
+    ``e``, ``lo`` and ``hi`` mean nothing on the other rows.
+    """
+
+    __slots__ = ("kind", "base", "e", "lo", "hi")
+
+    def __init__(self, kind, base, e, lo, hi):
+        self.kind, self.base, self.e, self.lo, self.hi = kind, base, e, lo, hi
+
+    @classmethod
+    def free(cls, n: int) -> _Modes:
+        """``n`` free vertices."""
+        return cls(np.full(n, FREE, dtype=np.int8), np.zeros((n, 2)), np.zeros((n, 2)), np.full(n, -np.inf),
+                   np.full(n, np.inf))
+
+    @classmethod
+    def concat(cls, parts) -> _Modes:
+        return cls(*(np.concatenate([getattr(m, a) for m in parts]) for a in cls.__slots__))
+
+    def __len__(self) -> int:
+        return len(self.kind)
+
+    def __getitem__(self, idx) -> _Modes:
+        """The modes of some vertices (a slice, an index array or a mask), as a new object."""
+        return _Modes(*(getattr(self, a)[idx] for a in self.__slots__))
+
+    def copy(self) -> _Modes:
+        return _Modes(*(getattr(self, a).copy() for a in self.__slots__))
+
+    def insert(self, at: np.ndarray, other: _Modes) -> _Modes:
+        """``other``'s rows inserted before rows ``at`` (in order where ``at`` repeats), as :func:`numpy.insert`."""
+        return _Modes(*(np.insert(getattr(self, a), at, getattr(other, a), axis=0) for a in self.__slots__))
+
+    def set(self, k: int, kind: int, base=None, e=None, lo: float = -np.inf, hi: float = np.inf):
+        """Set the mode of vertex ``k`` in place."""
+        self.kind[k] = kind
+        if kind == SLIDE:
+            self.base[k], self.e[k], self.lo[k], self.hi[k] = base, e, lo, hi
+
+
 class _Parametrization:
     """Vertices of a polyline as an affine function ``X = X0 + M z`` of the unknowns ``z``.
 
-    ``modes[k]`` is ``"fixed"`` (a crossing point), ``"free"`` (two unknowns),
-    or ``(base, e, lo, hi)``: the vertex slides on the line ``base + tau e``
-    with ``lo <= tau <= hi`` (one unknown): a free end on the boundary, or a
-    refraction point on a line where the metric's norm jumps.  For a closed
-    curve (``shift`` given) the last vertex is the first plus ``shift``.
+    ``modes`` (a :class:`_Modes`) says how each vertex moves: fixed, free
+    (two unknowns) or sliding on a line (one unknown).  For a closed curve
+    (``shift`` given) the last vertex is the first plus ``shift``.
     """
 
-    def __init__(self, X: np.ndarray, modes: list, shift=None):
+    def __init__(self, X: np.ndarray, modes: _Modes, shift=None):
         n = len(X) - 1
         self.n = n
         self.X0 = X.copy()
-        if shift is None and not any(isinstance(m, str) and m == "free" for m in modes):
+        if shift is None and not (modes.kind == FREE).any():
             self._sliding(modes)
             return
         rows, cols, vals = [], [], []
         nz = 0
-        self.slides = []
+        slides = []
         last = n - 1 if shift is not None else n
         first_cols = None
         for k in range(last + 1):
-            mode = modes[k]
-            if isinstance(mode, str) and mode == "fixed":
+            kind = modes.kind[k]
+            if kind == FIXED:
                 continue
             self.X0[k] = 0.0
-            if isinstance(mode, str):  # free
+            if kind == FREE:
                 rows.extend([2 * k, 2 * k + 1])
                 cols.extend([nz, nz + 1])
                 vals.extend([1.0, 1.0])
                 entries = [(0, nz, 1.0), (1, nz + 1, 1.0)]
                 nz += 2
             else:
-                base, e, lo, hi = mode
-                self.X0[k] = base
+                e, lo, hi = modes.e[k], float(modes.lo[k]), float(modes.hi[k])
+                self.X0[k] = modes.base[k]
                 rows.extend([2 * k, 2 * k + 1])
                 cols.extend([nz, nz])
                 vals.extend([e[0], e[1]])
                 entries = [(0, nz, e[0]), (1, nz, e[1])]
-                self.slides.append((nz, lo, hi))
+                slides.append((nz, lo, hi))
                 nz += 1
             if k == 0:
                 first_cols = entries
@@ -223,28 +270,22 @@ class _Parametrization:
             self._diag = (self.E * self.E).sum(axis=1)
         else:
             self._diag = np.asarray(self.M.multiply(self.M).sum(axis=0)).ravel()
-        arr = np.array(self.slides, dtype=float).reshape(-1, 3)
+        arr = np.array(slides, dtype=float).reshape(-1, 3)
         self._slide_idx, self._lo, self._hi = arr[:, 0].astype(int), arr[:, 1], arr[:, 2]
 
-    def _sliding(self, modes: list):
+    def _sliding(self, modes: _Modes):
         """The common case, built with arrays: an open curve whose vertices are fixed or slide on lines.
 
         One unknown per moving vertex, in vertex order: the Hessian in ``z`` is tridiagonal.
         """
-        k = np.array([i for i, m in enumerate(modes) if not isinstance(m, str)], dtype=int)
+        k = np.flatnonzero(modes.kind == SLIDE)
         nz = len(k)
         self.nv = nz
-        moving = [modes[i] for i in k]
-        if nz:
-            self.X0[k] = np.array([m[0] for m in moving], dtype=float)
-            self.E = np.array([m[1] for m in moving], dtype=float).reshape(nz, 2)
-            bounds = np.array([(m[2], m[3]) for m in moving], dtype=float).reshape(nz, 2)
-        else:
-            self.E, bounds = np.zeros((0, 2)), np.zeros((0, 2))
+        self.X0[k] = modes.base[k]
+        self.E = modes.e[k]
         self.vertex = k
         self._diag = (self.E * self.E).sum(axis=1)
-        self._slide_idx, self._lo, self._hi = np.arange(nz), bounds[:, 0], bounds[:, 1]
-        self.slides = list(zip(range(nz), bounds[:, 0].tolist(), bounds[:, 1].tolist()))
+        self._slide_idx, self._lo, self._hi = np.arange(nz), modes.lo[k], modes.hi[k]
         self.banded = nz > 0
         rows = np.column_stack([2 * k, 2 * k + 1]).ravel()
         cols = np.repeat(np.arange(nz), 2)
@@ -280,7 +321,7 @@ class _Parametrization:
         return self.X0 + (self.M @ z).reshape(-1, 2)
 
 
-def _normal_modes(X: np.ndarray, modes: list, closed: bool) -> list:
+def _normal_modes(X: np.ndarray, modes: _Modes, closed: bool) -> _Modes:
     """Let each free vertex move only across the polyline, along its normal.
 
     Moving vertices along a geodesic barely changes its length (not at all
@@ -302,9 +343,12 @@ def _normal_modes(X: np.ndarray, modes: list, closed: bool) -> list:
     safe = np.where(norm > 0, norm, 1.0)
     normal = np.where((norm > 0)[:, None], np.column_stack([-tangent[:, 1], tangent[:, 0]]) / safe[:, None],
                       np.array([1.0, 0.0]))
-    inf = np.inf
-    return [(X[k].copy(), normal[k], -inf, inf) if isinstance(m, str) and m == "free" else m
-            for k, m in enumerate(modes)]
+    free = modes.kind == FREE
+    out = modes.copy()
+    out.kind[free] = SLIDE
+    out.base[free], out.e[free] = X[free], normal[free]
+    out.lo[free], out.hi[free] = -np.inf, np.inf
+    return out
 
 
 def _on_ground(domain: Domain, ground: int, X: np.ndarray) -> np.ndarray:
@@ -321,7 +365,7 @@ def _on_ground(domain: Domain, ground: int, X: np.ndarray) -> np.ndarray:
     return on
 
 
-def _grade_ends(domain: Domain, X: np.ndarray, modes: list, start_ground, end_ground, scale: float):
+def _grade_ends(domain: Domain, X: np.ndarray, modes: _Modes, start_ground, end_ground, scale: float):
     """Free vertices at ``1/2, 1/4, 1/8, ...`` of the segment next to an end that slides on the boundary.
 
     A geodesic may bend sharply just before it reaches the boundary: a grazing
@@ -342,14 +386,14 @@ def _grade_ends(domain: Domain, X: np.ndarray, modes: list, start_ground, end_gr
         pts = end[None, :] + frac[:, None] * (nb - end)[None, :]
         if at_start:
             X = np.vstack([X[:1], pts[::-1], X[1:]])
-            modes = [modes[0]] + ["free"] * depth + list(modes[1:])
+            modes = _Modes.concat([modes[:1], _Modes.free(depth), modes[1:]])
         else:
             X = np.vstack([X[:-1], pts, X[-1:]])
-            modes = list(modes[:-1]) + ["free"] * depth + [modes[-1]]
+            modes = _Modes.concat([modes[:-1], _Modes.free(depth), modes[-1:]])
     return X, modes
 
 
-def _corner_switch(domain: Domain, metric: Metric, X: np.ndarray, modes: list, k: int) -> list:
+def _corner_switch(domain: Domain, metric: Metric, X: np.ndarray, modes: _Modes, k: int) -> _Modes:
     """Let an end held at a corner of the boundary slide on the other side if that is cheaper.
 
     An end slides on one side of a rectangle or triangle; the optimizer
@@ -358,8 +402,7 @@ def _corner_switch(domain: Domain, metric: Metric, X: np.ndarray, modes: list, k
     valley runs into the corner).  Try a small step along every side through
     that corner and keep the side of the cheapest.
     """
-    mode = modes[k]
-    if isinstance(mode, str) or domain.kind in ("cylinder", "annulus", "torus"):
+    if modes.kind[k] != SLIDE or domain.kind in ("cylinder", "annulus", "torus"):
         return modes
     q = X[k]
     tiny = 1e-12 * max(domain.lengths)
@@ -372,7 +415,7 @@ def _corner_switch(domain: Domain, metric: Metric, X: np.ndarray, modes: list, k
     def cost(p):
         return float(segment_lengths(metric, domain.comps, nb[None, :], p[None, :])[0])
 
-    best, best_mode = cost(q), mode
+    best, best_mode = cost(q), None
     for _, base, e, (lo, hi) in through:
         tau = float((q - base) @ e)
         for sgn in (1.0, -1.0):
@@ -381,14 +424,14 @@ def _corner_switch(domain: Domain, metric: Metric, X: np.ndarray, modes: list, k
                 c = cost(base + t * e)
                 if c < best:
                     best, best_mode = c, (base, e, lo, hi)
-    if best_mode is mode:
+    if best_mode is None:
         return modes
-    out = list(modes)
-    out[k] = best_mode
+    out = modes.copy()
+    out.set(k, SLIDE, *best_mode)
     return out
 
 
-def _truncate_at_boundary(domain: Domain, ground: int, X: np.ndarray, modes: list) -> tuple[np.ndarray, list]:
+def _truncate_at_boundary(domain: Domain, ground: int, X: np.ndarray, modes: _Modes) -> tuple[np.ndarray, _Modes]:
     """End a curve bound for the boundary where it first reaches it.
 
     The rest of the polyline runs on or back from the boundary, where the
@@ -404,7 +447,8 @@ def _truncate_at_boundary(domain: Domain, ground: int, X: np.ndarray, modes: lis
     k = int(hit[0])
     X = X[: k + 1].copy()
     base, e, (lo, hi) = _side(domain, ground, X[k])
-    modes = list(modes[:k]) + [(base, e, lo, hi)]
+    modes = modes[: k + 1].copy()
+    modes.set(k, SLIDE, base, e, lo, hi)
     return X, modes
 
 
@@ -461,15 +505,21 @@ def _unfold(domain: Domain, metric: Metric, routes: list[np.ndarray], max_passes
 def _resampled_with_ends(domain: Domain, route: np.ndarray, n: int, start_ground, end_ground, closed: bool):
     """``n`` segments evenly along the route; ends fixed (crossing points) or sliding on their boundary."""
     X = _resample(route, n)
-    modes: list = ["free"] * (n + 1)
+    return X, _end_modes(domain, X, start_ground, end_ground, closed)
+
+
+def _end_modes(domain: Domain, X: np.ndarray, start_ground, end_ground, closed: bool) -> _Modes:
+    """Free vertices, the ends fixed (crossing points) or sliding on their boundary."""
+    n = len(X) - 1
+    modes = _Modes.free(n + 1)
     if not closed:
         for k, ground in ((0, start_ground), (n, end_ground)):
             if ground is None:
-                modes[k] = "fixed"
+                modes.set(k, FIXED)
             else:
                 base, e, (lo, hi) = _side(domain, ground, X[k])
-                modes[k] = (base, e, lo, hi)
-    return X, modes
+                modes.set(k, SLIDE, base, e, lo, hi)
+    return modes
 
 
 def _initial_polyline(domain: Domain, route: np.ndarray, start: int, start_ground, end_ground, closed: bool):
@@ -489,19 +539,10 @@ def _initial_polyline(domain: Domain, route: np.ndarray, start: int, start_groun
         Y = np.empty((2 * len(X) - 1, 2))
         Y[0::2], Y[1::2] = X, 0.5 * (X[:-1] + X[1:])
         X = Y
-    n = len(X) - 1
-    modes: list = ["free"] * (n + 1)
-    if not closed:
-        for k, ground in ((0, start_ground), (n, end_ground)):
-            if ground is None:
-                modes[k] = "fixed"
-            else:
-                base, e, (lo, hi) = _side(domain, ground, X[k])
-                modes[k] = (base, e, lo, hi)
-    return _insert_breaks(domain, X, modes)
+    return _insert_breaks(domain, X, _end_modes(domain, X, start_ground, end_ground, closed))
 
 
-def _merge_collapsed(X: np.ndarray, modes: list, rel: float = 1e-6) -> tuple[np.ndarray, list]:
+def _merge_collapsed(X: np.ndarray, modes: _Modes, rel: float = 1e-6) -> tuple[np.ndarray, _Modes]:
     """Drop an interior vertex that has landed on its neighbour.
 
     A refraction vertex on a vertex line met at a shallow angle (a valley of
@@ -525,14 +566,14 @@ def _merge_collapsed(X: np.ndarray, modes: list, rel: float = 1e-6) -> tuple[np.
     for s in tiny:  # a few segments at most: segment s joins vertices s and s + 1
         if not (keep[s] and keep[s + 1]):
             continue
-        movable = [k for k in (s + 1, s) if 0 < k < n - 1 and not (isinstance(modes[k], str) and modes[k] == "fixed")]
-        free = [k for k in movable if isinstance(modes[k], str)]
+        movable = [k for k in (s + 1, s) if 0 < k < n - 1 and modes.kind[k] != FIXED]
+        free = [k for k in movable if modes.kind[k] == FREE]
         if movable:
             keep[(free or movable)[0]] = False
-    return X[keep], [m for m, k in zip(modes, keep) if k]
+    return X[keep], modes[keep]
 
 
-def _drop_folds(X: np.ndarray, modes: list) -> tuple[np.ndarray, list]:
+def _drop_folds(X: np.ndarray, modes: _Modes) -> tuple[np.ndarray, _Modes]:
     """Drop free vertices where the polyline turns back on itself (by more than 120 degrees).
 
     A geodesic is smooth between the lines where the metric's norm jumps, and
@@ -551,39 +592,40 @@ def _drop_folds(X: np.ndarray, modes: list) -> tuple[np.ndarray, list]:
         # at interior vertex k + 1; a geodesic that turns onto a side just before a corner makes turns of up to
         # about 100 degrees at a coarse level, which are not folds (dropping them cost 2.2e-4 on a random scene)
         turn = (d[:-1] * d[1:]).sum(axis=1) < -0.5 * norm[:-1] * norm[1:]
-        free = np.array([isinstance(m, str) and m == "free" for m in modes[1:-1]])
+        free = modes.kind[1:-1] == FREE
         fold = np.flatnonzero(turn & free) + 1
         if fold.size == 0:
             break
         drop = fold[np.concatenate([[True], np.diff(fold) > 1])]  # not two neighbours at once
         keep = np.ones(len(X), dtype=bool)
         keep[drop] = False
-        X, modes = X[keep], [m for m, k in zip(modes, keep) if k]
+        X, modes = X[keep], modes[keep]
     return X, modes
 
 
-def _prune_breaks(X: np.ndarray, modes: list) -> tuple[np.ndarray, list]:
+def _prune_breaks(X: np.ndarray, modes: _Modes) -> tuple[np.ndarray, _Modes]:
     """Drop refraction vertices whose neighbours are on the same side of their line.
 
     Such a vertex only touches the line: the curve no longer crosses it there,
     and holding a vertex on it would keep the curve in a sequence of cells it
     has left.  :func:`_insert_breaks` adds back the crossings that remain.
     """
-    keep = np.ones(len(X), dtype=bool)
-    for k in range(1, len(X) - 1):
-        mode = modes[k]
-        if isinstance(mode, str) or mode[1][0] * mode[1][1] != 0:
-            continue
-        axis = 0 if mode[1][0] == 0.0 else 1  # the coordinate that is constant on the line
-        c = X[k, axis]
-        if (X[k - 1, axis] - c) * (X[k + 1, axis] - c) >= 0:
-            keep[k] = False
-    if keep.all():
+    if len(X) < 3:
         return X, modes
-    return X[keep], [m for m, kk in zip(modes, keep) if kk]
+    e = modes.e[1:-1]
+    on_line = (modes.kind[1:-1] == SLIDE) & (e[:, 0] * e[:, 1] == 0)  # a line of constant x1 or x2
+    axis = np.where(e[:, 0] == 0.0, 0, 1)  # the coordinate that is constant on the line
+    k = np.arange(1, len(X) - 1)
+    c = X[k, axis]
+    touch = on_line & ((X[k - 1, axis] - c) * (X[k + 1, axis] - c) >= 0)
+    if not touch.any():
+        return X, modes
+    keep = np.ones(len(X), dtype=bool)
+    keep[1:-1] = ~touch
+    return X[keep], modes[keep]
 
 
-def _insert_breaks(domain: Domain, X: np.ndarray, modes: list) -> tuple[np.ndarray, list]:
+def _insert_breaks(domain: Domain, X: np.ndarray, modes: _Modes) -> tuple[np.ndarray, _Modes]:
     """Add a sliding vertex where the polyline crosses a vertex parameter of either component.
 
     There the metric's norm jumps and the geodesic refracts; with a vertex on
@@ -611,18 +653,11 @@ def _insert_breaks(domain: Domain, X: np.ndarray, modes: list) -> tuple[np.ndarr
     dup[1:] = (seg[1:] == seg[:-1]) & (t[1:] - t[:-1] < 1e-9)
     t, seg, axis = t[~dup], seg[~dup], axis[~dup]
     pts = P[seg] + t[:, None] * (Q[seg] - P[seg])
-    out_X, out_modes = [], []
-    j = 0
-    for k in range(len(X)):
-        out_X.append(X[k])
-        out_modes.append(modes[k])
-        while j < len(seg) and seg[j] == k:
-            e = np.array([0.0, 1.0]) if axis[j] == 0 else np.array([1.0, 0.0])
-            base = pts[j] * (1 - e)
-            out_X.append(pts[j])
-            out_modes.append((base, e, -np.inf, np.inf))
-            j += 1
-    return np.array(out_X), out_modes
+    e = np.zeros((len(seg), 2))
+    e[np.arange(len(seg)), 1 - axis] = 1.0  # along the line of constant x_axis
+    m = len(seg)
+    lines = _Modes(np.full(m, SLIDE, dtype=np.int8), pts * (1 - e), e, np.full(m, -np.inf), np.full(m, np.inf))
+    return np.insert(X, seg + 1, pts, axis=0), modes.insert(seg + 1, lines)
 
 
 def _newton(par, unpack, length, assemble, z, max_iter, rtol=1e-11):
@@ -693,15 +728,16 @@ def _lbfgs_polish(domain: Domain, metric: Metric, par: _Parametrization, X: np.n
         return float(fl.sum()) / f0, (Mt @ gX) / f0
 
     wide = 10.0 * scale
-    bounds = [(float(zk) - wide, float(zk) + wide) for zk in z]
-    for kk, lo, hi in par.slides:
-        bounds[kk] = (max(lo, bounds[kk][0]), min(hi, bounds[kk][1]))
+    bounds = np.column_stack([z - wide, z + wide])
+    k = par._slide_idx
+    bounds[k, 0] = np.maximum(par._lo, bounds[k, 0])
+    bounds[k, 1] = np.minimum(par._hi, bounds[k, 1])
     res = minimize(fun, z, jac=True, method="L-BFGS-B", bounds=bounds,
                    options={"maxiter": 100, "ftol": 1e-12, "gtol": 1e-14, "maxcor": 30})
     return unpack(par.clip(res.x))
 
 
-def _optimize_level(domain: Domain, metric: Metric, X0: np.ndarray, modes: list, shift, scale: float,
+def _optimize_level(domain: Domain, metric: Metric, X0: np.ndarray, modes: _Modes, shift, scale: float,
                     max_iter: int = 20, polish: bool = True) -> tuple[np.ndarray, bool]:
     """Minimize the exact length of one polyline over its free coordinates: ``(X, converged)``.
 
@@ -1222,12 +1258,7 @@ def refine_many(
             X = c.X
             Y = np.empty((2 * len(X) - 1, 2))
             Y[0::2], Y[1::2] = X, 0.5 * (X[:-1] + X[1:])
-            modes: list = []
-            for k in range(len(X)):
-                modes.append(c.modes[k])
-                if k < len(X) - 1:
-                    modes.append("free")
-            c.X, c.modes = Y, modes
+            c.X, c.modes = Y, c.modes.insert(np.arange(1, len(X)), _Modes.free(len(X) - 1))
             nxt.append(c)
         live = nxt
         n *= 2

@@ -72,22 +72,37 @@ def test_a_route_that_folds_back_refines_to_the_straight_routes_geodesic(angle):
     assert b.length == pytest.approx(a.length, rel=1e-6)
 
 
+def _modes(spec):
+    """A ``_Modes`` from ``"fixed"``, ``"free"`` or ``(base, e, lo, hi)`` per vertex."""
+    from direct.refinement import FIXED, SLIDE, _Modes
+
+    m = _Modes.free(len(spec))
+    for k, mode in enumerate(spec):
+        if isinstance(mode, str):
+            if mode == "fixed":
+                m.set(k, FIXED)
+        else:
+            m.set(k, SLIDE, *mode)
+    return m
+
+
 def test_a_vertex_that_lands_on_its_neighbour_is_merged():
     """A zero-length segment is a kink the optimizer cannot cross: the free vertex goes, ends stay."""
-    from direct.refinement import _merge_collapsed
+    from direct.refinement import FIXED, _merge_collapsed
 
     line = (np.array([0.5, 0.0]), np.array([0.0, 1.0]), -np.inf, np.inf)
     X = np.array([[0.0, 0.0], [0.2, 0.1], [0.5, 0.3], [0.5, 0.3 + 1e-12], [0.8, 0.5], [1.0, 0.6]])
-    modes = ["fixed", "free", line, "free", "free", "fixed"]
+    modes = _modes(["fixed", "free", line, "free", "free", "fixed"])
     Y, ymodes = _merge_collapsed(X, modes)
     np.testing.assert_array_equal(Y, X[[0, 1, 2, 4, 5]])  # the free vertex, not the refraction vertex
-    assert ymodes == [modes[k] for k in (0, 1, 2, 4, 5)]
+    for a in ("kind", "base", "e", "lo", "hi"):
+        np.testing.assert_array_equal(getattr(ymodes, a), getattr(modes, a)[[0, 1, 2, 4, 5]])
     # an end that a vertex has landed on stays; the vertex goes
     Z, zmodes = _merge_collapsed(X[[0, 0, 1, 2, 4, 5]] + [[0, 0], [1e-12, 0], [0, 0], [0, 0], [0, 0], [0, 0]],
-                                 ["fixed", "free", "free", line, "free", "fixed"])
-    assert len(Z) == 5 and zmodes[0] == "fixed" and np.all(Z[0] == 0.0)
+                                 _modes(["fixed", "free", "free", line, "free", "fixed"]))
+    assert len(Z) == 5 and zmodes.kind[0] == FIXED and np.all(Z[0] == 0.0)
     # nothing collapsed: nothing changes
-    W, wmodes = _merge_collapsed(X[[0, 1, 2, 4, 5]], [modes[k] for k in (0, 1, 2, 4, 5)])
+    W, wmodes = _merge_collapsed(X[[0, 1, 2, 4, 5]], modes[[0, 1, 2, 4, 5]])
     assert len(W) == 5 and len(wmodes) == 5
 
 
@@ -109,12 +124,14 @@ def test_a_refraction_vertex_on_a_crease_does_not_pin_the_curve():
 def test_drop_folds_removes_free_vertices_that_turn_back_and_keeps_the_rest():
     from direct.refinement import _drop_folds
 
+    from direct.refinement import SLIDE
+
     X = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.0], [1.5, 0.0], [3.0, 0.0], [4.0, 1.0]])
-    modes = ["fixed", "free", "free", "free", ("line",), "fixed"]
-    Y, m = _drop_folds(X, modes)
+    line = (np.array([3.0, 0.0]), np.array([0.0, 1.0]), -np.inf, np.inf)
+    Y, m = _drop_folds(X, _modes(["fixed", "free", "free", "free", line, "fixed"]))
     d = np.diff(Y, axis=0)
     assert ((d[:-1] * d[1:]).sum(axis=1) >= 0).all()
     assert np.array_equal(Y[0], X[0]) and np.array_equal(Y[-1], X[-1])  # the ends stay
-    assert ("line",) in m  # only free vertices go
+    assert (m.kind == SLIDE).sum() == 1 and [3.0, 0.0] in Y.tolist()  # only free vertices go
     smooth = np.column_stack([np.linspace(0, 1, 9), np.linspace(0, 1, 9) ** 2])
-    assert np.array_equal(_drop_folds(smooth, ["fixed"] + ["free"] * 7 + ["fixed"])[0], smooth)
+    assert np.array_equal(_drop_folds(smooth, _modes(["fixed"] + ["free"] * 7 + ["fixed"]))[0], smooth)
