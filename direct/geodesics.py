@@ -104,7 +104,7 @@ def _side_of(domain, st: np.ndarray) -> np.ndarray:
 
 
 def grid_distances(
-    graph: GridGraph, backend: Backend = "scipy", bound: float | None = None
+    graph: GridGraph, backend: Backend = "scipy", bound: float | None = None, searches: dict | None = None
 ) -> tuple[np.ndarray, callable]:
     """Grid distances between the terminals of a domain: its boundary parts, then its crossing points.
 
@@ -123,6 +123,10 @@ def grid_distances(
         points is only worth it when shorter than sending both to the boundary,
         so with ``bound`` at least the grid's overestimate factor no entry that
         program (34) could use is lost.  Entries beyond the limit are ``inf``.
+    searches : dict, optional
+        ``{terminal: limit}`` (scipy): search only from these terminals, each
+        stopped at its limit (a grid length); the other rows of ``T`` are
+        ``inf`` and their routes unknown.  Overrides ``bound``.
 
     Returns
     -------
@@ -140,7 +144,14 @@ def grid_distances(
         lengths differ by less than the grid's bias.
     """
     src, dst = graph.sources, graph.targets
-    if bound is not None and backend == "scipy" and graph.n_grounds == 1 and len(src) > 1:
+    if searches is not None and backend == "scipy":
+        dist = np.full((len(src), graph.matrix.shape[0]), np.inf)
+        pred = np.full(dist.shape, -9999, dtype=np.int32)
+        for a, limit in searches.items():
+            dist[a], pred[a] = dijkstra(graph.matrix, directed=True, indices=int(src[a]), return_predecessors=True,
+                                        limit=limit)
+        node_route = _paths_from_predecessors(pred, src)
+    elif bound is not None and backend == "scipy" and graph.n_grounds == 1 and len(src) > 1:
         dist, node_route = _bounded_shortest(graph.matrix, src, bound)
     else:
         dist, node_route = _shortest(graph.matrix, src, backend)

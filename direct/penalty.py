@@ -109,6 +109,9 @@ _GRAZING = 0.1
 #: worst relative overestimate of grid distances by stencil (shared/NUMERICS.md), plus a margin for coarse grids
 _STENCIL_BIAS = {8: 0.0824, 16: 0.0275, 32: 0.0131}
 
+#: the route check's searches on the second grid stop at this factor times the curve's length on the first grid
+_ROUTE_CHECK_REACH = 2.0
+
 
 @dataclass(frozen=True)
 class Pair:
@@ -573,14 +576,21 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
             # splits a valley, grids of different steps may route a curve on different sides of it, and the
             # refinement settles on the side it starts from. Each route is straightened at the coarse scale
             # (cheap); one clearly shorter than the refined curve leads to another local geodesic and is refined
-            if "route" not in second:
-                g2 = build_graph(domain, metric, max(4, (3 * settings["resolution"]) // 4), settings["neighbours"],
-                                 coarsen=coarsen)
-                second["route"] = grid_distances(g2, backend, bound=_SEARCH_BOUND if backend == "scipy" else None)[1]
-            route2 = second["route"]
+            if "graph" not in second:
+                second["graph"] = build_graph(domain, metric, max(4, (3 * settings["resolution"]) // 4),
+                                              settings["neighbours"], coarsen=coarsen)
+            # searches from one end of each curve (the point, when the other end is the boundary), stopped at twice
+            # its length on the first grid: far enough for the routes to the boundary within that factor
+            searches: dict = {}
+            for u, v in keys:
+                a = u if u >= ng or v < ng else v
+                searches[a] = max(searches.get(a, 0.0), _ROUTE_CHECK_REACH * grid_costs[u, v])
+            T2, route2 = grid_distances(second["graph"], backend, searches=searches)
             ranked = []  # (key, job from the point when one end is a point and the other the boundary)
             for k in keys:
                 u, v = k
+                if not np.isfinite(T2[(u, v) if u >= ng or v < ng else (v, u)]):  # beyond reach on the second grid
+                    continue
                 if (u < ng) == (v < ng):
                     ranked.append((k, GeodesicJob(route2(u, v), start_ground=u if u < ng else None,
                                                   end_ground=v if v < ng else None)))

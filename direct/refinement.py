@@ -201,6 +201,14 @@ class _Modes:
         """``other``'s rows inserted before rows ``at`` (in order where ``at`` repeats), as :func:`numpy.insert`."""
         return _Modes(*(np.insert(getattr(self, a), at, getattr(other, a), axis=0) for a in self.__slots__))
 
+    def doubled(self) -> _Modes:
+        """The modes after a free midpoint is put in every segment."""
+        n = len(self.kind)
+        out = _Modes.free(2 * n - 1)
+        for a in self.__slots__:
+            getattr(out, a)[0::2] = getattr(self, a)
+        return out
+
     def set(self, k: int, kind: int, base=None, e=None, lo: float = -np.inf, hi: float = np.inf):
         """Set the mode of vertex ``k`` in place."""
         self.kind[k] = kind
@@ -1258,7 +1266,7 @@ def refine_many(
             X = c.X
             Y = np.empty((2 * len(X) - 1, 2))
             Y[0::2], Y[1::2] = X, 0.5 * (X[:-1] + X[1:])
-            c.X, c.modes = Y, c.modes.insert(np.arange(1, len(X)), _Modes.free(len(X) - 1))
+            c.X, c.modes = Y, c.modes.doubled()
             nxt.append(c)
         live = nxt
         n *= 2

@@ -144,6 +144,34 @@ def test_bounded_searches_keep_every_entry_program_34_can_use(seed, coarsen):
                 poly = route(a, 0)
                 assert segment_lengths(met, dom.comps, poly[:-1], poly[1:]).sum() == pytest.approx(part[a, 0], rel=1e-9)
 
+@pytest.mark.parametrize("seed", range(2))
+def test_searches_from_chosen_terminals_stop_at_their_limits(seed):
+    """``searches={a: limit}`` (the route check's second grid): rows of other terminals stay unknown, the searched
+    rows agree with the full search up to their limit, and their routes are real curves of those lengths."""
+    sc = random_crossing_scene(seed, n_vert=6, min_crossings=3)
+    met = get_metric("G")
+    checked = False
+    for dom in domains(sc, direct.find_crossings(sc)):
+        if len(dom.points) < 3:
+            continue
+        g = build_graph(dom, met, resolution=40, coarsen=4)
+        full, _ = grid_distances(g)
+        a, b = 1, full.shape[0] - 1
+        limit = float(np.median(full[a, full[a] > 0]))
+        part, route = grid_distances(g, searches={a: limit, b: np.inf})
+        assert np.isinf(np.delete(part, [a, b], axis=0)).all()
+        np.testing.assert_allclose(part[b], full[b], rtol=1e-12)
+        inside = full[a] <= limit
+        np.testing.assert_allclose(part[a, inside], full[a, inside], rtol=1e-12)
+        assert np.isinf(part[a, ~inside]).all() and inside.any() and (~inside).any()
+        for t in np.flatnonzero(inside):
+            if t != a:
+                poly = route(a, t)
+                assert segment_lengths(met, dom.comps, poly[:-1], poly[1:]).sum() == pytest.approx(part[a, t], rel=1e-9)
+        checked = True
+    assert checked
+
+
 
 def test_grid_is_uniform_in_deformed_arclength_for_G():
     """A component stretched unevenly gets cells of equal deformed length: the stencil's bias stays isotropic."""
