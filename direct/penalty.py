@@ -706,8 +706,8 @@ def penalty(
         domain with a grazing crossing (the sine of the angle between the
         deformed tangents below 0.1) gets the second pass at every
         tolerance unless ``second_pass=False``.  Without the full second
-        pass, the chosen curves of the pieces of two components (not the
-        tori) are checked against the routes of the second grid: each is
+        pass, the chosen curves (on every piece of ``M x M`` but the tori)
+        are checked against the routes of the second grid: each is
         straightened at the coarse scale, and one shorter than the refined
         curve (another local geodesic, across a crease) is refined too and
         the shorter kept (``settings["route_check"]``; about 15 % of the

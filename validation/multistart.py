@@ -9,10 +9,12 @@ the three is the best value known; a result is *uncovered* when it exceeds
 that best value by more than its own ``error_estimate``.  Writes
 ``multistart.csv`` beside this file and prints a summary.
 
-``python validation/multistart.py --tol 1e-4 --coarsen 4 1`` (about five
-minutes) does the same at ``tol=1e-4``, where no second pass runs, from the
-locally refined grids (the default) and the uniform ones: six starts a scene,
-``multistart_tol0.0001.csv``.
+``python validation/multistart.py --tol 1e-4 --coarsen 4 1`` (two to five
+minutes) does the same at ``tol=1e-4``, where no full second pass runs (only
+the route check of the chosen curves), from the locally refined grids (the
+default) and the uniform ones: six starts a scene,
+``multistart_tol0.0001.csv``; ``--tol 1e-3`` at the default tolerance,
+``multistart_tol0.001.csv``.
 """
 
 from __future__ import annotations
