@@ -629,21 +629,28 @@ def build_graph(
         if not sel.any():
             continue
         src, si, sj, sst = node_ids[sel], ii[sel], jj[sel], grid_st[sel]
-        for k, (di, dj) in enumerate(full * scale):
-            ti, tj = si + di, sj + dj
-            q, kk = target(ti, tj)
-            interior = q >= ng
-            if k >= len(half):  # each interior edge once: the other half only towards nodes without these moves
-                interior &= ~is_fine_src.take(np.maximum(q, 0)) if scale == 1 else False
-            inn, out = interior.nonzero()[0], (q == -1).nonzero()[0]
-            add(src.take(inn), q.take(inn), np.take(sst, inn, axis=0), at(ti.take(inn), tj.take(inn)), False,
-                np.take(kk, inn, axis=0), grid=True)
-            if out.size:
-                p = np.take(sst, out, axis=0)
-                d = at(ti.take(out), tj.take(out)) - p
-                t, which = domain.exit_time(p, d)
-                t = np.minimum(t, 1.0)
-                add(src.take(out), which, p, p + t[:, None] * d, True, np.zeros((out.size, 2), dtype=np.int64))
+        # every move from every source at once, move by move (the order of the edges, hence of Dijkstra's ties,
+        # is that of a loop over the moves)
+        moves = full * scale
+        n_src = len(src)
+        ti = (si[None, :] + moves[:, :1]).ravel()
+        tj = (sj[None, :] + moves[:, 1:]).ravel()
+        q, kk = target(ti, tj)
+        interior = q >= ng
+        # each interior edge once: the other half of the moves only towards nodes without these moves
+        other_half = np.repeat(np.arange(len(moves)) >= len(half), n_src)
+        interior &= ~(other_half & is_fine_src.take(np.maximum(q, 0))) if scale == 1 else ~other_half
+        inn, out = interior.nonzero()[0], (q == -1).nonzero()[0]
+        owner = np.tile(np.arange(n_src), len(moves))
+        add(src.take(owner.take(inn)), q.take(inn), np.take(sst, owner.take(inn), axis=0),
+            at(ti.take(inn), tj.take(inn)), False, np.take(kk, inn, axis=0), grid=True)
+        if out.size:
+            p = np.take(sst, owner.take(out), axis=0)
+            d = at(ti.take(out), tj.take(out)) - p
+            t, which = domain.exit_time(p, d)
+            t = np.minimum(t, 1.0)
+            add(src.take(owner.take(out)), which, p, p + t[:, None] * d, True,
+                np.zeros((out.size, 2), dtype=np.int64))
 
     if n_pts:
         offs = np.arange(-window + 1, window + 1)
