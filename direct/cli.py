@@ -64,7 +64,8 @@ def _add_method_options(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--second-pass", choices=["auto", "on", "off"], default="auto",
         help="solve again from a second grid's routes and add the spread to the error estimate "
-        "(auto: when tol < 1e-4)",
+        "(auto: when tol < 1e-4; above, only the chosen curves are checked against the second grid's routes; "
+        "off: neither)",
     )
 
 
@@ -192,7 +193,7 @@ def summary(scene, result) -> str:
     metric = ", ".join(
         f"{k}={v}" for k, v in s.items()
         if k not in ("metric", "tol", "resolution", "neighbours", "coarsen", "backend", "refine", "second_pass",
-                     "grazing_second_pass")
+                     "grazing_second_pass", "route_check")
     )
     grazing = s.get("grazing_second_pass")
     lines.append(
@@ -200,6 +201,7 @@ def summary(scene, result) -> str:
         f"resolution={s.get('resolution')} (coarsen {s.get('coarsen')}), neighbours={s.get('neighbours')}, "
         f"backend={s.get('backend')}, "
         f"refine={s.get('refine')}, second pass={s.get('second_pass')}"
+        + (" (route check of the chosen curves)" if s.get("route_check") else "")
         + (f" (grazing crossings: second pass on {grazing} domain{'s' if grazing > 1 else ''})" if grazing else "")
     )
     lines.append("")

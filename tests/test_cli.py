@@ -62,6 +62,11 @@ def test_penalty_summary(capsys, cross_value):
     assert "A x B" in out  # the crossings table names the components
     assert "boundary" in out  # the single crossing's curves end on the boundary
     assert "time:" in out
+    # the settings line: the metric's own parameters in parentheses, then how the curves were checked
+    metric_line = next(line for line in out.splitlines() if line.startswith("metric:"))
+    assert metric_line.startswith("metric: G (q=2.0);") and "route check of the chosen curves" in metric_line
+    assert main(["penalty", "cross", "--second-pass", "off"]) == 0
+    assert "route check" not in capsys.readouterr().out
 
 
 def test_penalty_summary_fig2(capsys):
