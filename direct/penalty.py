@@ -6,6 +6,13 @@ geodesics, all the curves of a domain at once (:mod:`direct.refinement`)
 -> assignment program (34) (:mod:`direct.matching`)
 -> :class:`Penalty`.
 
+The refinement settles in the local geodesic its route leads to, so the
+routes of a second grid (three quarters of the step) give second starts:
+below ``tol = 1e-4`` a whole second solution (``second_pass``), above it a
+check of the chosen curves only (``settings["route_check"]``: each second
+route straightened at the coarse scale, refined where it is shorter than the
+refined curve).
+
 Convention: ``value`` is ``J`` over the whole of ``M x M`` as in eq. (34):
 each geometric crossing ``phi(x1) = phi(x2)`` gives the two signed points
 ``(x1, x2)`` and ``(x2, x1)``, so every curve ``gamma`` of one half of
