@@ -183,7 +183,9 @@ class Penalty:
     error_estimate : float
         Estimated absolute error of ``value``: the sum of the estimates of
         the refined geodesics (:func:`direct.refinement.refine_many`), plus
-        the spread between the two solutions where a second pass runs; 0
+        the spread between the two solutions where a second pass runs (and,
+        for a curve the route check refined again, the spread of its two
+        starts when they settle within 1 % of each other); 0
         when there is no crossing.  NaN with ``refine=False``: the grid value
         has no estimate (its stencil and sampling bias reach 9 % on the cases
         of ``validation/failures.md``).
@@ -194,7 +196,12 @@ class Penalty:
     pairs : list of Pair
         The optimal matching, boundary included, on all of ``M x M``.
     settings : dict
-        Metric and numerical settings used.
+        Metric and numerical settings used: the metric's name and
+        parameters, ``tol``, ``resolution``, ``coarsen``, ``neighbours``,
+        ``backend``, ``refine``, ``second_pass``, ``route_check`` (the
+        chosen curves checked against a second grid's routes) and, where a
+        grazing crossing forced a second pass, ``grazing_second_pass`` (the
+        number of such domains).
     seconds : float
         Wall time of the computation.
     """
