@@ -122,9 +122,7 @@ def test_a_refraction_vertex_on_a_crease_does_not_pin_the_curve():
 
 
 def test_drop_folds_removes_free_vertices_that_turn_back_and_keeps_the_rest():
-    from direct.refinement import _drop_folds
-
-    from direct.refinement import SLIDE
+    from direct.refinement import SLIDE, _drop_folds
 
     X = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.0], [1.5, 0.0], [3.0, 0.0], [4.0, 1.0]])
     line = (np.array([3.0, 0.0]), np.array([0.0, 1.0]), -np.inf, np.inf)
