@@ -64,7 +64,7 @@ def _add_method_options(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--second-pass", choices=["auto", "on", "off"], default="auto",
         help="solve again from a second grid's routes and add the spread to the error estimate "
-        "(auto: when tol < 1e-4; above, only the chosen curves are checked against the second grid's routes; "
+        "(auto: when tol <= 1e-4; above, only the chosen curves are checked against the second grid's routes; "
         "off: neither)",
     )
 

@@ -8,8 +8,8 @@ geodesics, all the curves of a domain at once (:mod:`direct.refinement`)
 
 The refinement settles in the local geodesic its route leads to, so the
 routes of a second grid (three quarters of the step) give second starts:
-below ``tol = 1e-4`` a whole second solution (``second_pass``), above it a
-check of the chosen curves only (``settings["route_check"]``: each second
+from ``tol = 1e-4`` down a whole second solution (``second_pass``), above it
+a check of the chosen curves only (``settings["route_check"]``: each second
 route straightened at the coarse scale, refined where it is shorter than the
 refined curve).
 
@@ -118,6 +118,10 @@ _STENCIL_BIAS = {8: 0.0824, 16: 0.0275, 32: 0.0131}
 
 #: the route check's searches on the second grid stop at this factor times the curve's length on the first grid
 _ROUTE_CHECK_REACH = 2.0
+#: the full second pass is the default from this tolerance down; above it the route check is enough: on the 175
+#: random scenes of validation/default_tol.py, local geodesics 6e-5 and 1.5e-4 of J apart (seeds 159 and 279) that the
+#: check's coarse pass cannot tell apart kept tol=1e-3 within tol but not tol=1e-4 (1.5e-4 off, estimate 1.6e-5)
+_SECOND_PASS_TOL = 1e-4
 
 
 @dataclass(frozen=True)
@@ -716,7 +720,7 @@ def penalty(
         geodesic rides a crease of the metric (a vertex line along which
         ``rho`` has a kink) or where several local geodesics compete, two
         starts can settle 1e-5 to 1e-4 apart, a spread the discretization
-        estimate alone does not see.  Default: when ``tol < 1e-4``.  A
+        estimate alone does not see.  Default: when ``tol <= 1e-4``.  A
         domain with a grazing crossing (the sine of the angle between the
         deformed tangents below 0.1) gets the second pass at every
         tolerance unless ``second_pass=False``.  Without the full second
@@ -789,7 +793,7 @@ def _penalty(scene, metric, power, tol, resolution, neighbours, backend, refine,
     settings: dict[str, Any] = dict(met.describe())
     allow_second = second_pass is not False  # grazing domains get a second pass unless it is refused
     if second_pass is None:
-        second_pass = tol < 1e-4
+        second_pass = tol <= _SECOND_PASS_TOL
     settings.update(tol=float(tol), resolution=int(resolution), neighbours=int(neighbours), coarsen=int(coarsen),
                     backend=backend,
                     refine=bool(refine), second_pass=bool(second_pass and refine))

@@ -10,11 +10,11 @@ that best value by more than its own ``error_estimate``.  Writes
 ``multistart.csv`` beside this file and prints a summary.
 
 ``python validation/multistart.py --tol 1e-4 --coarsen 4 1`` (two to five
-minutes) does the same at ``tol=1e-4``, where no full second pass runs (only
-the route check of the chosen curves), from the locally refined grids (the
-default) and the uniform ones: six starts a scene,
-``multistart_tol0.0001.csv``; ``--tol 1e-3`` at the default tolerance,
-``multistart_tol0.001.csv``.
+minutes) does the same at ``tol=1e-4`` (with the full second pass, the default
+from there down), from the locally refined grids (the default) and the
+uniform ones: six starts a scene, ``multistart_tol0.0001.csv``; ``--tol 1e-3``
+at the default tolerance, where no full second pass runs (only the route
+check of the chosen curves), ``multistart_tol0.001.csv``.
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """What the route check buys at the default tolerance, and what it costs.
 
 Run ``python validation/route_check.py`` (about two minutes).  Without the
-full second pass (``tol >= 1e-4``), ``direct.penalty`` checks each chosen
+full second pass (``tol > 1e-4``), ``direct.penalty`` checks each chosen
 curve against the routes of a second grid (three quarters of the step),
 straightened at the coarse scale, and refines those that come out shorter
 than the refined curve (another local geodesic, across a crease of the
