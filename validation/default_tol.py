@@ -1,10 +1,11 @@
 """Are the values at the loose tolerances within their estimates of a tight one?
 
 Run ``python validation/default_tol.py`` (about twelve minutes).  For the random
-interval scenes of ``validation/multistart.py`` and ``route_check.py`` (2 or 3
-polylines of 7 vertices, 1 to 10 crossings, seeds 100 to 299) it computes
-``J`` at ``tol=1e-3`` (the default: one start and the route check of the
-chosen curves), at ``tol=1e-4`` (the full second pass, the default from there
+interval scenes of the family of ``validation/multistart.py`` (which runs seeds
+100 to 139) and ``route_check.py`` (2 or 3 polylines of 7 vertices, 1 to 10
+crossings), seeds 100 to 299, it computes ``J`` at ``tol=1e-3`` (the default:
+one start and the route check of the chosen curves; a domain with a grazing
+crossing gets the second pass at every tolerance), at ``tol=1e-4`` (the full second pass, the default from there
 down) and at ``tol=1e-6`` (the second pass too), the reference.  The reference
 is computed by ``direct`` too: this is a check of self-consistency across
 tolerances, not of the method against an independent value
@@ -13,8 +14,11 @@ tolerances, not of the method against an independent value
 Unlike ``route_check.py``, which compares the chosen curves with and without
 their check, this measures the whole value: a curve that the assignment did
 not choose, refined in a worse local geodesic, would show here as a value
-above the reference.  A row is *silently off* when the value differs from the
-reference by more than the sum of both estimates with no ``ToleranceWarning``.
+above the reference.  Two measures: a row is *over its estimate* when the
+value differs from the reference by more than its own ``error_estimate``, and
+*silently off* when it differs by more than the sum of both estimates (the
+reference's own estimate included: it warns when its second pass saw a spread
+above ``1e-6``) with no ``ToleranceWarning``.
 Writes ``default_tol.csv`` and ``default_tol.png`` beside this file and prints
 a summary per tolerance.
 """
@@ -62,17 +66,19 @@ def main(seeds=range(100, 300)) -> list[dict]:
         for tol in TOLS:
             res, warned, seconds = _solve(sc, tol)
             error = res.value - ref.value
-            allowed = res.error_estimate + ref.error_estimate
+            allowed = res.error_estimate + ref.error_estimate  # both absolute
             rows.append(dict(seed=seed, crossings=len(res.crossings), tol=tol, value=res.value, reference=ref.value,
                              relative_error=error / ref.value, relative_estimate=res.error_estimate / res.value,
                              reference_relative_estimate=ref.error_estimate / ref.value, warned=warned,
-                             reference_warned=ref_warned, silently_off=abs(error) > allowed and not warned,
+                             reference_warned=ref_warned, over_estimate=abs(error) > res.error_estimate,
+                             silently_off=abs(error) > allowed and not warned,
                              beyond_tol=abs(error) > tol * ref.value, seconds=seconds,
                              reference_seconds=ref_seconds))
-            if abs(error) > allowed or abs(error) > tol * ref.value:
-                r = rows[-1]
+            r = rows[-1]
+            if r["over_estimate"] or r["beyond_tol"]:
                 print(f"seed {seed} tol {tol:g}: {r['relative_error']:+.1e} relative, estimate "
-                      f"{r['relative_estimate']:.1e}{' (warned)' if warned else ''}", flush=True)
+                      f"{r['relative_estimate']:.1e}{' (warned)' if warned else ''}, reference estimate "
+                      f"{r['reference_relative_estimate']:.1e}{' (warned)' if ref_warned else ''}", flush=True)
     with open(os.path.join(HERE, "default_tol.csv"), "w", newline="") as fh:
         w = csv.DictWriter(fh, fieldnames=list(rows[0]))
         w.writeheader()
@@ -80,12 +86,15 @@ def main(seeds=range(100, 300)) -> list[dict]:
     for tol in TOLS:
         rs = [r for r in rows if r["tol"] == tol]
         err = np.array([abs(r["relative_error"]) for r in rs])
-        est = np.array([r["relative_estimate"] + r["reference_relative_estimate"] for r in rs])
+        est = np.array([(r["relative_estimate"] * r["value"] + r["reference_relative_estimate"] * r["reference"])
+                        / r["reference"] for r in rs])
         t = sum(r["seconds"] for r in rs)
         t_ref = sum(r["reference_seconds"] for r in rs)
-        print(f"tol={tol:g}: {len(rs)} scenes; {sum(r['silently_off'] for r in rs)} silently off, "
+        print(f"tol={tol:g}: {len(rs)} scenes; {sum(r['over_estimate'] for r in rs)} over their own estimate, "
+              f"{sum(r['silently_off'] for r in rs)} silently off, "
               f"{sum(r['beyond_tol'] for r in rs)} beyond tol, {sum(r['warned'] for r in rs)} warned; "
-              f"largest error {err.max():.1e} relative, largest error / estimate {np.max(err / est):.2f}; "
+              f"largest error {err.max():.1e} relative, largest error / (both estimates) {np.max(err / est):.2f}; "
+              f"{sum(r['reference_warned'] for r in rs)} references warned; "
               f"time against tol={REFERENCE_TOL:g}: {t / t_ref:.2f} ({t:.0f} s / {t_ref:.0f} s)")
     _chart(rows)
     return rows
