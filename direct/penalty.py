@@ -726,7 +726,8 @@ def penalty(
         estimate alone does not see.  Default: when ``tol <= 1e-4``.  A
         domain with a grazing crossing (the sine of the angle between the
         deformed tangents below 0.1) gets the second pass at every
-        tolerance unless ``second_pass=False``.  Without the full second
+        tolerance unless ``second_pass=False``, and is refined to
+        ``tol=1e-4`` at least.  Without the full second
         pass, the chosen curves (on every piece of ``M x M`` but the tori)
         are checked against the routes of the second grid: each is
         straightened at the coarse scale, and one shorter than the refined
