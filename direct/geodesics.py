@@ -76,6 +76,20 @@ def _shortest(matrix: sp.csr_matrix, sources: np.ndarray, backend: Backend):
     raise ValueError(f"backend must be 'scipy' or 'networkx', got {backend!r}")
 
 
+def _limited_searches(matrix: sp.csr_matrix, sources: np.ndarray, limits: dict, dist=None, pred=None):
+    """Searches from some sources only, each stopped at its limit: ``{a: limit}`` for source ``sources[a]``.
+
+    Rows not searched stay ``inf`` (``dist``, ``pred`` may come filled for some rows already).
+    """
+    if dist is None:
+        dist = np.full((len(sources), matrix.shape[0]), np.inf)
+        pred = np.full(dist.shape, -9999, dtype=np.int32)
+    for a, limit in limits.items():
+        dist[a], pred[a] = dijkstra(matrix, directed=True, indices=int(sources[a]), return_predecessors=True,
+                                    limit=limit)
+    return dist, _paths_from_predecessors(pred, sources)
+
+
 def _bounded_shortest(matrix: sp.csr_matrix, sources: np.ndarray, bound: float):
     """:func:`_shortest` from one ground (``sources[0]``) and points, each point's search bounded (see ``bound``)."""
     d0, p0 = dijkstra(matrix, directed=True, indices=sources[:1], return_predecessors=True)
@@ -85,11 +99,8 @@ def _bounded_shortest(matrix: sp.csr_matrix, sources: np.ndarray, bound: float):
     dist = np.full((len(sources), matrix.shape[0]), np.inf)
     pred = np.full(dist.shape, -9999, dtype=np.int32)
     dist[0], pred[0] = d0[0], p0[0]
-    for a in range(1, len(sources)):
-        limit = bound * (d_ground[a - 1] + far) if reach[a - 1] else np.inf
-        dist[a], pred[a] = dijkstra(matrix, directed=True, indices=int(sources[a]), return_predecessors=True,
-                                    limit=limit)
-    return dist, _paths_from_predecessors(pred, sources)
+    limits = {a: bound * (d_ground[a - 1] + far) if reach[a - 1] else np.inf for a in range(1, len(sources))}
+    return _limited_searches(matrix, sources, limits, dist, pred)
 
 
 def _side_of(domain, st: np.ndarray) -> np.ndarray:
@@ -145,12 +156,7 @@ def grid_distances(
     """
     src, dst = graph.sources, graph.targets
     if searches is not None and backend == "scipy":
-        dist = np.full((len(src), graph.matrix.shape[0]), np.inf)
-        pred = np.full(dist.shape, -9999, dtype=np.int32)
-        for a, limit in searches.items():
-            dist[a], pred[a] = dijkstra(graph.matrix, directed=True, indices=int(src[a]), return_predecessors=True,
-                                        limit=limit)
-        node_route = _paths_from_predecessors(pred, src)
+        dist, node_route = _limited_searches(graph.matrix, src, searches)
     elif bound is not None and backend == "scipy" and graph.n_grounds == 1 and len(src) > 1:
         dist, node_route = _bounded_shortest(graph.matrix, src, bound)
     else:
