@@ -814,7 +814,8 @@ def _penalty(scene, metric, power, tol, resolution, neighbours, backend, refine,
         # there; the refinement can settle short of that turn with a small estimate, so such domains always get a
         # second start (measured: 1.3e-3 off with an estimate of 1.5e-5 at 0.003 rad and tol 1e-3 without it), and
         # are refined to _GRAZING_TOL at least: at a looser tol the rounds of each level stop while the curve still
-        # creeps towards the turn (1e-4 rad at tol 1e-3: 1.6e-5 off with an estimate of 8e-6)
+        # creeps towards the turn (1e-4 rad at tol 1e-3: 1.6e-5 off with an estimate of 8e-6). A mitigation: the root
+        # is refine_many's rule for ending a level's rounds, whose estimate counts only the last round's gain
         grazing = refine and allow_second and _min_sine(dom, crossings) < _GRAZING
         dom_settings = dict(settings, tol=min(settings["tol"], _GRAZING_TOL)) if grazing else settings
         value, grid_value, err, curves = _solve_domain(dom, met, dom_settings, backend, refine)
