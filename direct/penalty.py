@@ -112,8 +112,6 @@ _CLOSED_STARTS = 3
 
 #: crossings whose tangents make an angle with sine below this are grazing: their domain always gets a second pass
 _GRAZING = 0.1
-#: the tolerance a domain with a grazing crossing is refined to at least (see _penalty)
-_GRAZING_TOL = 1e-4
 
 #: worst relative overestimate of grid distances by stencil (shared/NUMERICS.md), plus a margin for coarse grids
 _STENCIL_BIAS = {8: 0.0824, 16: 0.0275, 32: 0.0131}
@@ -812,17 +810,13 @@ def _penalty(scene, metric, power, tol, resolution, neighbours, backend, refine,
             continue  # nothing to join: J = 0 on this piece
         # a grazing crossing's geodesic runs down a narrow valley into a corner of the domain and turns onto a side
         # there; the refinement can settle short of that turn with a small estimate, so such domains always get a
-        # second start (measured: 1.3e-3 off with an estimate of 1.5e-5 at 0.003 rad and tol 1e-3 without it), and
-        # are refined to _GRAZING_TOL at least: at a looser tol the rounds of each level stop while the curve still
-        # creeps towards the turn (1e-4 rad at tol 1e-3: 1.6e-5 off with an estimate of 8e-6). A mitigation: the root
-        # is refine_many's rule for ending a level's rounds, whose estimate counts only the last round's gain
+        # second start (measured: 1.3e-3 off with an estimate of 1.5e-5 at 0.003 rad and tol 1e-3 without it)
         grazing = refine and allow_second and _min_sine(dom, crossings) < _GRAZING
-        dom_settings = dict(settings, tol=min(settings["tol"], _GRAZING_TOL)) if grazing else settings
-        value, grid_value, err, curves = _solve_domain(dom, met, dom_settings, backend, refine)
+        value, grid_value, err, curves = _solve_domain(dom, met, settings, backend, refine)
         if grazing and not settings["second_pass"]:
             settings["grazing_second_pass"] = settings.get("grazing_second_pass", 0) + 1  # domains, for the record
         if settings["second_pass"] or grazing:
-            other = dict(dom_settings, resolution=max(4, (3 * settings["resolution"]) // 4))
+            other = dict(settings, resolution=max(4, (3 * settings["resolution"]) // 4))
             value2, _, err2, curves2 = _solve_domain(dom, met, other, backend, refine)
             spread = abs(value2 - value)
             if value2 < value:

@@ -23,9 +23,11 @@ so each grid route becomes a polyline whose exact metric length
 * The number of segments doubles, three levels at least, until the length
   changes by less than the tolerance; the value is Richardson-extrapolated
   (error ``~ n^-2``).  The error estimate is the whole last change, at least
-  a quarter of the change before it, plus what the last round of
-  optimization still gained (a level whose optimization was cut short has
-  not reached its minimum).
+  a quarter of the change before it, plus what further rounds of the last
+  level could still gain, extrapolated from the ratio of its rounds'
+  successive gains (a level whose optimization was cut short, or that
+  creeps towards a corner along a narrow valley, has not reached its
+  minimum).
 
 All the curves of a domain are refined together (:func:`refine_many`): their
 polylines are stacked into one vectorized problem, so each Newton iteration
@@ -1139,17 +1141,48 @@ class _Curve:
         self.job, self.X, self.modes = job, X, modes
         self.history: list[float] = []  # the length reached at each level
         self.length = 0.0  # the length after the latest round of the current level
-        self.gain = 0.0  # what that round gained
+        self.gains: list[float] = []  # what each round of the current level gained
+        self.gain = 0.0  # what further rounds of the current level could still gain (see _remaining_gain)
         self.result: RefinedPath | None = None
+
+
+#: a round gaining more than this fraction of ``tol`` (relative) is followed by another, which measures the ratio
+_RATIO_ROUND = 1e-4
+#: the largest ratio of successive rounds' gains taken as converging (a geometric tail of at most 19 more gains)
+_MAX_RATIO = 0.95
+
+
+def _remaining_gain(gains: list[float]) -> float:
+    """What further rounds of a level could still gain, from what its rounds gained so far.
+
+    The rounds of a level converge about geometrically: each moves the vertices
+    along the normals of the polyline it starts from, and the next one, with
+    new normals, takes a fraction ``r`` of what is left (where the curve creeps
+    along a narrow valley towards a corner, ``r`` comes near 1).  With the last
+    two gains ``g_{k-1}, g_k`` the tail is ``g_k r / (1 - r)``, ``r = g_k /
+    g_{k-1}`` (``r`` capped at ``_MAX_RATIO``); never less than ``g_k`` itself
+    (one round: ``r = 1/2`` assumed).
+    """
+    g = gains[-1]
+    if len(gains) < 2 or g <= 0.0:
+        return g
+    r = min(g / gains[-2], _MAX_RATIO) if gains[-2] > 0.0 else _MAX_RATIO
+    return max(g, g * r / (1.0 - r))
 
 
 def _settle(domain: Domain, metric: Metric, curves: list[_Curve], scale: float, tol: float, max_rounds: int):
     """Rounds of normal moves at the current level, the normals recomputed each time, until the lengths settle.
 
     One round cannot carry a vertex past the centre of curvature of the
-    polyline.  Sets each curve's ``X``, ``modes``, ``length`` and ``gain``
-    (what its last round gained).
+    polyline.  The rounds go on while what they could still gain
+    (:func:`_remaining_gain`, from the ratio of successive gains) exceeds
+    ``tol / 100`` of the length, and a round that gained more than
+    ``_RATIO_ROUND * tol`` is always followed by one more, so that the ratio
+    is measured.  Sets each curve's ``X``, ``modes``, ``length``, ``gains``
+    and ``gain`` (the remaining gain, for the error estimate).
     """
+    for c in curves:
+        c.gains = []
     todo = list(curves)
     for _round in range(max_rounds):
         outs = _optimize_many(domain, metric, [(c.X, _normal_modes(c.X, c.modes, c.job.closed), c.job.shift)
@@ -1165,8 +1198,9 @@ def _settle(domain: Domain, metric: Metric, curves: list[_Curve], scale: float, 
         L_new = _lengths(domain, metric, [c.X for c in todo])
         more = []
         for c, L in zip(todo, L_new):
-            c.gain, c.length = max(c.length - L, 0.0), L
-            if c.gain > 1e-2 * tol * L:
+            c.gains.append(max(c.length - L, 0.0))
+            c.gain, c.length = _remaining_gain(c.gains), L
+            if c.gain > 1e-2 * tol * L or (len(c.gains) == 1 and c.gains[0] > _RATIO_ROUND * tol * L):
                 more.append(c)
         todo = more
         if not todo:
@@ -1202,15 +1236,17 @@ def refine_many(
         First and largest number of segments.
     max_rounds : int
         Rounds of normal moves per level (the normals recomputed each time);
-        a level stops earlier when a round gains less than ``tol / 100``.
+        a level stops earlier when what further rounds could still gain,
+        extrapolated from the ratio of successive gains, is below
+        ``tol / 100`` of the length.
 
     Returns
     -------
     list of RefinedPath
         One per job, in order.  ``length`` is Richardson-extrapolated;
         ``error_estimate`` is the whole last change between levels, at least
-        a quarter of the change before it, plus what the last round of
-        optimization still gained.
+        a quarter of the change before it, plus what further rounds of the
+        last level could still gain.
     """
     scale = float(max(domain.lengths))
     jobs = list(jobs)
@@ -1252,7 +1288,7 @@ def refine_many(
                     # a level that barely moves after one that moved a lot has stalled (a kink it cannot cross),
                     # not converged: with an error ~ n^-2 each change is about a quarter of the one before
                     estimate = max(estimate, abs(h[-3] - h[-2]) / 4.0)
-                # what the last round still gained: the optimization of this level may not have finished
+                # what further rounds could still gain: the optimization of this level may not have finished
                 estimate += c.gain
                 # three levels at least: the change between the first two is often not yet in the asymptotic
                 # range (measured: 3.8e-3 off at tol 1e-3 after two), and the third checks it through the ratio

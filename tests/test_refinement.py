@@ -133,3 +133,17 @@ def test_drop_folds_removes_free_vertices_that_turn_back_and_keeps_the_rest():
     assert (m.kind == SLIDE).sum() == 1 and [3.0, 0.0] in Y.tolist()  # only free vertices go
     smooth = np.column_stack([np.linspace(0, 1, 9), np.linspace(0, 1, 9) ** 2])
     assert np.array_equal(_drop_folds(smooth, _modes(["fixed"] + ["free"] * 7 + ["fixed"]))[0], smooth)
+
+
+@pytest.mark.parametrize("r", [0.1, 0.5, 0.9])
+def test_remaining_gain_is_the_tail_of_a_geometric_series(r):
+    """Rounds whose gains shrink by a constant ratio ``r`` leave ``g r / (1 - r)`` after a gain ``g``;
+    one gain alone counts itself, and a ratio near 1 (a curve creeping towards a corner) is capped."""
+    from direct.refinement import _MAX_RATIO, _remaining_gain
+
+    gains = [1e-3 * r**k for k in range(4)]
+    tail = sum(1e-3 * r**k for k in range(4, 2000))
+    assert _remaining_gain(gains) == pytest.approx(max(gains[-1], tail), rel=1e-12)
+    assert _remaining_gain(gains[:1]) == gains[0]
+    assert _remaining_gain([1e-6, 1e-6]) == pytest.approx(1e-6 * _MAX_RATIO / (1 - _MAX_RATIO))
+    assert _remaining_gain([1e-6, 0.0]) == 0.0
