@@ -7,8 +7,12 @@ scene and process), so that the noise of this shared machine hits both alike.  I
 ``validation/ab.csv`` (one row per process and scene) and prints the ratio of the medians of the
 best times per scene, with the values both versions return.
 
-Scenes: zigzags of 10 and 100 crossings through a line (``benchmark.zigzag``), the 60-degree crossing
-``cross60`` and the figure eight ``fig10`` (a circle with itself), at the default settings.
+Scenes (``--family standard``): zigzags of 10 and 100 crossings through a line (``benchmark.zigzag``),
+the 60-degree crossing ``cross60`` and the figure eight ``fig10`` (a circle with itself).  ``--family
+random``: the random interval scenes of ``validation/default_tol.py`` (2 or 3 polylines of 7
+vertices, 1 to 10 crossings), seeds 100 to 116.  ``--tol`` (default 1e-3) is passed to every call;
+``--csv`` names the output (default ``ab.csv``).  For example ``python validation/ab.py HEAD~1
+--family random --tol 1e-6 --rounds 2 --repeat 1 --csv ab_random.csv`` (about six minutes).
 """
 
 from __future__ import annotations
@@ -29,26 +33,40 @@ ROOT = os.path.dirname(HERE)
 CHILD = r"""
 import json, sys, time
 sys.path.insert(0, {validation!r})
+sys.path.insert(0, {tests!r})
+import warnings
 import direct
-from benchmark import zigzag
-scenes = {{"zigzag10": zigzag(10), "zigzag100": zigzag(100), "cross60": direct.scenes.get("cross60"),
-          "fig10": direct.scenes.get("fig10")}}
+warnings.simplefilter("ignore", direct.ToleranceWarning)
+if {family!r} == "standard":
+    from benchmark import zigzag
+    scenes = {{"zigzag10": zigzag(10), "zigzag100": zigzag(100), "cross60": direct.scenes.get("cross60"),
+              "fig10": direct.scenes.get("fig10")}}
+else:
+    from conftest import random_crossing_scene
+    scenes = {{}}
+    for seed in range(100, 117):
+        try:
+            scenes[f"seed{{seed}}"] = random_crossing_scene(seed, n_comp=2 + seed % 2, n_vert=7, min_crossings=1,
+                                                           max_crossings=10)
+        except RuntimeError:
+            pass
 out = {{}}
 for name, sc in scenes.items():
-    res = direct.penalty(sc)  # warm up
+    if {family!r} == "standard":
+        res = direct.penalty(sc, tol={tol!r})  # warm up
     best = float("inf")
     for _ in range({repeat}):
         t0 = time.perf_counter()
-        res = direct.penalty(sc)
+        res = direct.penalty(sc, tol={tol!r})
         best = min(best, time.perf_counter() - t0)
     out[name] = (best, res.value, res.error_estimate)
 print(json.dumps(out))
 """
 
 
-def run(tree: str, repeat: int) -> dict:
+def run(tree: str, repeat: int, family: str = "standard", tol: float = 1e-3) -> dict:
     """Best times and values of the ``direct`` in ``tree``, measured in a fresh process."""
-    code = CHILD.format(validation=HERE, repeat=repeat)
+    code = CHILD.format(validation=HERE, tests=os.path.join(ROOT, "tests"), repeat=repeat, family=family, tol=tol)
     env = dict(os.environ, PYTHONPATH=tree)
     out = subprocess.run([sys.executable, "-c", code], cwd=tree, env=env, check=True, capture_output=True, text=True)
     return json.loads(out.stdout.strip().splitlines()[-1])
@@ -59,6 +77,9 @@ def main(argv=None) -> int:
     ap.add_argument("rev", help="the git revision to compare the working tree with")
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--family", choices=["standard", "random"], default="standard")
+    ap.add_argument("--tol", type=float, default=1e-3)
+    ap.add_argument("--csv", default="ab.csv", help="output file name, beside this script")
     args = ap.parse_args(argv)
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
@@ -67,22 +88,26 @@ def main(argv=None) -> int:
         try:
             for r in range(args.rounds):
                 for label, tree in (("old", old), ("new", ROOT)):
-                    for scene, (sec, value, est) in run(tree, args.repeat).items():
+                    for scene, (sec, value, est) in run(tree, args.repeat, args.family, args.tol).items():
                         rows.append(dict(round=r, version=label, scene=scene, seconds=sec, value=value,
                                          error_estimate=est))
         finally:
             subprocess.run(["git", "worktree", "remove", "--force", old], cwd=ROOT, check=False)
-    with open(os.path.join(HERE, "ab.csv"), "w", newline="") as fh:
+    with open(os.path.join(HERE, args.csv), "w", newline="") as fh:
         w = csv.DictWriter(fh, fieldnames=list(rows[0]))
         w.writeheader()
         w.writerows(rows)
-    print(f"old = {args.rev}, new = working tree; median over {args.rounds} rounds of the best of {args.repeat} calls")
+    print(f"old = {args.rev}, new = working tree, tol={args.tol:g}; median over {args.rounds} rounds of the best of "
+          f"{args.repeat} calls")
     for scene in dict.fromkeys(r["scene"] for r in rows):
         t = {v: float(np.median([r["seconds"] for r in rows if r["scene"] == scene and r["version"] == v]))
              for v in ("old", "new")}
         val = {v: next(r["value"] for r in rows if r["scene"] == scene and r["version"] == v) for v in ("old", "new")}
         print(f"{scene:10s} old {t['old']:.4f} s  new {t['new']:.4f} s  old/new {t['old'] / t['new']:.2f}  "
               f"values {val['old']:.10g} / {val['new']:.10g}")
+    total = {v: sum(float(np.median([r["seconds"] for r in rows if r["scene"] == sc and r["version"] == v]))
+                    for sc in dict.fromkeys(r["scene"] for r in rows)) for v in ("old", "new")}
+    print(f"all scenes: old {total['old']:.2f} s  new {total['new']:.2f} s  old/new {total['old'] / total['new']:.2f}")
     return 0
 
 
