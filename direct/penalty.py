@@ -119,7 +119,7 @@ _STENCIL_BIAS = {8: 0.0824, 16: 0.0275, 32: 0.0131}
 #: the route check's searches on the second grid stop at this factor times the curve's length on the first grid
 _ROUTE_CHECK_REACH = 2.0
 #: the full second pass is the default from this tolerance down; above it the route check: on the 175 random scenes
-#: of validation/default_tol.py it keeps tol=1e-3 within tol (not always within the estimate: 2 of 175 over it),
+#: of validation/default_tol.py it keeps tol=1e-3 within tol (not always within the estimate: 1 of 175 over it),
 #: while local geodesics 6e-5 and 1.5e-4 of J apart (seeds 159 and 279), closer than the check's coarse pass can
 #: tell, left tol=1e-4 1.5e-4 off with an estimate of 1.6e-5
 _SECOND_PASS_TOL = 1e-4
@@ -724,8 +724,7 @@ def penalty(
         estimate alone does not see.  Default: when ``tol <= 1e-4``.  A
         domain with a grazing crossing (the sine of the angle between the
         deformed tangents below 0.1) gets the second pass at every
-        tolerance unless ``second_pass=False``, and is refined to
-        ``tol=1e-4`` at least.  Without the full second
+        tolerance unless ``second_pass=False``.  Without the full second
         pass, the chosen curves (on every piece of ``M x M`` but the tori)
         are checked against the routes of the second grid: each is
         straightened at the coarse scale, and one shorter than the refined

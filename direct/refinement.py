@@ -1141,8 +1141,7 @@ class _Curve:
         self.job, self.X, self.modes = job, X, modes
         self.history: list[float] = []  # the length reached at each level
         self.length = 0.0  # the length after the latest round of the current level
-        self.gains: list[float] = []  # what each round of the current level gained
-        self.gain = 0.0  # what further rounds of the current level could still gain (see _remaining_gain)
+        self.gains: list[float] = []  # what each round of the current level gained (see _remaining_gain)
         self.result: RefinedPath | None = None
 
 
@@ -1161,8 +1160,10 @@ def _remaining_gain(gains: list[float]) -> float:
     along a narrow valley towards a corner, ``r`` comes near 1).  With the last
     two gains ``g_{k-1}, g_k`` the tail is ``g_k r / (1 - r)``, ``r = g_k /
     g_{k-1}`` (``r`` capped at ``_MAX_RATIO``); never less than ``g_k`` itself
-    (one round: ``r = 1/2`` assumed).
+    (one round: ``r = 1/2`` assumed; no round: nothing).
     """
+    if not gains:
+        return 0.0
     g = gains[-1]
     if len(gains) < 2 or g <= 0.0:
         return g
@@ -1178,8 +1179,8 @@ def _settle(domain: Domain, metric: Metric, curves: list[_Curve], scale: float, 
     (:func:`_remaining_gain`, from the ratio of successive gains) exceeds
     ``tol / 100`` of the length, and a round that gained more than
     ``_RATIO_ROUND * tol`` is always followed by one more, so that the ratio
-    is measured.  Sets each curve's ``X``, ``modes``, ``length``, ``gains``
-    and ``gain`` (the remaining gain, for the error estimate).
+    is measured.  Sets each curve's ``X``, ``modes``, ``length`` and
+    ``gains``.
     """
     for c in curves:
         c.gains = []
@@ -1199,8 +1200,8 @@ def _settle(domain: Domain, metric: Metric, curves: list[_Curve], scale: float, 
         more = []
         for c, L in zip(todo, L_new):
             c.gains.append(max(c.length - L, 0.0))
-            c.gain, c.length = _remaining_gain(c.gains), L
-            if c.gain > 1e-2 * tol * L or (len(c.gains) == 1 and c.gains[0] > _RATIO_ROUND * tol * L):
+            c.length = L
+            if _remaining_gain(c.gains) > 1e-2 * tol * L or (len(c.gains) == 1 and c.gains[0] > _RATIO_ROUND * tol * L):
                 more.append(c)
         todo = more
         if not todo:
@@ -1289,7 +1290,7 @@ def refine_many(
                     # not converged: with an error ~ n^-2 each change is about a quarter of the one before
                     estimate = max(estimate, abs(h[-3] - h[-2]) / 4.0)
                 # what further rounds could still gain: the optimization of this level may not have finished
-                estimate += c.gain
+                estimate += _remaining_gain(c.gains)
                 # three levels at least: the change between the first two is often not yet in the asymptotic
                 # range (measured: 3.8e-3 off at tol 1e-3 after two), and the third checks it through the ratio
                 if (estimate <= max(tol * abs(h[-1]), atol) and len(h) >= 3) or n >= max_segments:

@@ -147,3 +147,4 @@ def test_remaining_gain_is_the_tail_of_a_geometric_series(r):
     assert _remaining_gain(gains[:1]) == gains[0]
     assert _remaining_gain([1e-6, 1e-6]) == pytest.approx(1e-6 * _MAX_RATIO / (1 - _MAX_RATIO))
     assert _remaining_gain([1e-6, 0.0]) == 0.0
+    assert _remaining_gain([]) == 0.0  # no round (max_rounds=0)
