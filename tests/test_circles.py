@@ -308,3 +308,32 @@ def test_torus_closed_curve_against_independent_minimization(metric, rel):
     best = min(minimize(length, np.r_[c0, np.zeros(2 * K)], method="BFGS").fun for c0 in starts)
     res = direct.penalty(sc, metric)
     assert res.value / 2 == pytest.approx(best, rel=rel)
+
+
+def test_foreseen_entries_batch_the_rounds_without_changing_the_choice(monkeypatch):
+    """The star polygon of 9 vertices (a double cover, 9 crossings on the annulus): by symmetry every point's
+    curve to the diagonal is a contender in turn. Refining the entries the next solves would ask for in one batch
+    (``_foreseen``) must give the same value and pairs as refining only the chosen ones, in fewer batches."""
+    import sys
+
+    P = sys.modules["direct.penalty"]
+    scene = direct.scenes.circle_scene(lambda t: np.column_stack([np.cos(2 * t), np.sin(2 * t)]), n=9, name="star")
+    runs = {}
+    for mode in ("batched", "one by one"):
+        if mode == "one by one":
+            monkeypatch.setattr(P, "_foreseen", lambda missing, *args, **kwargs: missing)
+        batches = []
+        refine_many = P.refine_many
+
+        def counting(domain, metric, jobs, *args, _inner=refine_many, **kwargs):
+            batches.append(len(jobs))
+            return _inner(domain, metric, jobs, *args, **kwargs)
+
+        monkeypatch.setattr(P, "refine_many", counting)
+        runs[mode] = (direct.penalty(scene), batches)
+        monkeypatch.setattr(P, "refine_many", refine_many)
+    (fast, nb_fast), (slow, nb_slow) = runs["batched"], runs["one by one"]
+    assert fast.value == pytest.approx(slow.value, rel=1e-12)
+    assert sorted(str((p.start_crossing, p.end_crossing, p.start, p.end)) for p in fast.pairs) == sorted(
+        str((p.start_crossing, p.end_crossing, p.start, p.end)) for p in slow.pairs)
+    assert len(nb_fast) <= len(nb_slow) / 3
