@@ -325,8 +325,8 @@ def test_foreseen_entries_batch_the_rounds_without_changing_the_choice(monkeypat
         batches = []
         refine_many = P.refine_many
 
-        def counting(domain, metric, jobs, *args, _inner=refine_many, **kwargs):
-            batches.append(len(jobs))
+        def counting(domain, metric, jobs, *args, _inner=refine_many, _batches=batches, **kwargs):
+            _batches.append(len(jobs))
             return _inner(domain, metric, jobs, *args, **kwargs)
 
         monkeypatch.setattr(P, "refine_many", counting)
