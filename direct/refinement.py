@@ -717,12 +717,8 @@ def _newton(par, unpack, length, assemble, z, max_iter, rtol=1e-11):
     return X, False
 
 
-def _lbfgs_polish(domain: Domain, metric: Metric, par: _Parametrization, X: np.ndarray, scale: float,
-                  ftol: float = 1e-12) -> np.ndarray:
-    """Quasi-Newton (L-BFGS-B) on the exact gradient from ``X``: robust where the length has kinks.
-
-    Stops when an iteration gains less than ``ftol`` of the length (see :func:`_polish_ftol`), or after 100.
-    """
+def _lbfgs_polish(domain: Domain, metric: Metric, par: _Parametrization, X: np.ndarray, scale: float) -> np.ndarray:
+    """Quasi-Newton (L-BFGS-B) on the exact gradient from ``X``: robust where the length has kinks."""
     comps = domain.comps
     n = par.n
     k = np.arange(n)
@@ -747,12 +743,12 @@ def _lbfgs_polish(domain: Domain, metric: Metric, par: _Parametrization, X: np.n
     bounds[k, 0] = np.maximum(par._lo, bounds[k, 0])
     bounds[k, 1] = np.minimum(par._hi, bounds[k, 1])
     res = minimize(fun, z, jac=True, method="L-BFGS-B", bounds=bounds,
-                   options={"maxiter": 100, "ftol": ftol, "gtol": 1e-14, "maxcor": 30})
+                   options={"maxiter": 100, "ftol": 1e-12, "gtol": 1e-14, "maxcor": 30})
     return unpack(par.clip(res.x))
 
 
 def _optimize_level(domain: Domain, metric: Metric, X0: np.ndarray, modes: _Modes, shift, scale: float,
-                    max_iter: int = 20, polish: bool = True, ftol: float = 1e-12) -> tuple[np.ndarray, bool]:
+                    max_iter: int = 20, polish: bool = True) -> tuple[np.ndarray, bool]:
     """Minimize the exact length of one polyline over its free coordinates: ``(X, converged)``.
 
     The general (sparse) form, for closed curves and any parametrization;
@@ -790,10 +786,10 @@ def _optimize_level(domain: Domain, metric: Metric, X0: np.ndarray, modes: _Mode
         return float(f.sum()), Mt @ gX, (Mt @ HX @ M).tocsc()
 
     z = par.pack(X0)
-    X, converged = _newton(par, unpack, length, assemble, z, max_iter, rtol=_NEWTON_RTOL if polish else _COARSE_RTOL)
+    X, converged = _newton(par, unpack, length, assemble, z, max_iter, rtol=1e-11 if polish else 1e-7)
     if converged or not polish:
         return X, converged
-    return _lbfgs_polish(domain, metric, par, X, scale, ftol), False
+    return _lbfgs_polish(domain, metric, par, X, scale), False
 
 
 class _Stack:
@@ -1024,7 +1020,7 @@ def _newton_many(stack: _Stack, X_start: np.ndarray, max_iter: int, rtol: float)
 
 
 def _optimize_many(domain: Domain, metric: Metric, items: list, scale: float, max_iter: int = 20,
-                   polish: bool = True, ftol: float = 1e-12) -> list[tuple[np.ndarray, bool]]:
+                   polish: bool = True) -> list[tuple[np.ndarray, bool]]:
     """Minimize the exact lengths of several polylines over their free coordinates: ``[(X, converged), ...]``.
 
     ``items`` lists ``(X0, modes, shift)`` (see :class:`_Parametrization`).
@@ -1032,8 +1028,7 @@ def _optimize_many(domain: Domain, metric: Metric, items: list, scale: float, ma
     are stacked and solved together by :func:`_newton_many`; the others go
     one by one through :func:`_optimize_level`.  Curves that Newton leaves
     unconverged get an L-BFGS-B polish, unless ``polish`` is False (the
-    coarse pass, which only needs the shape of the curves); ``ftol`` is the
-    polish's stopping gain (:func:`_polish_ftol`).
+    coarse pass, which only needs the shape of the curves).
     """
     out: list = [None] * len(items)
     stacked, pars = [], []
@@ -1045,16 +1040,15 @@ def _optimize_many(domain: Domain, metric: Metric, items: list, scale: float, ma
             stacked.append(i)
             pars.append(par)
         else:
-            out[i] = _optimize_level(domain, metric, X0, modes, shift, scale, max_iter=max_iter, polish=polish,
-                                     ftol=ftol)
+            out[i] = _optimize_level(domain, metric, X0, modes, shift, scale, max_iter=max_iter, polish=polish)
     if stacked:
         stack = _Stack(domain, metric, pars, scale)
         X, conv = _newton_many(stack, np.vstack([items[i][0] for i in stacked]), max_iter,
-                               rtol=_NEWTON_RTOL if polish else _COARSE_RTOL)
+                               rtol=1e-11 if polish else 1e-7)
         for c, (i, par) in enumerate(zip(stacked, pars)):
             Xc = X[stack.voff[c]:stack.voff[c + 1]].copy()
             if not conv[c] and polish:
-                Xc = _lbfgs_polish(domain, metric, par, Xc, scale, ftol)
+                Xc = _lbfgs_polish(domain, metric, par, Xc, scale)
             out[i] = (Xc, bool(conv[c]))
     return out
 
@@ -1157,31 +1151,6 @@ _RATIO_ROUND = 1e-4
 _MAX_RATIO = 0.95
 
 
-#: the Newton decrement (relative) at which the coarse pass stops: it only needs the shape of the curves
-_COARSE_RTOL = 1e-7
-#: the Newton decrement (relative) at which a round of a level stops, whatever the tolerance (see _polish_ftol)
-_NEWTON_RTOL = 1e-11
-
-
-def _polish_ftol(tol: float) -> float:
-    """The gain, relative to the length, below which an iteration ends the L-BFGS-B polish: ``1e-5 tol``.
-
-    Within ``[1e-12, 1e-8]``: ``1e-12`` (what every polish used before) at
-    ``tol = 1e-7`` and below, ``1e-8`` at the default ``tol = 1e-3``.  A round
-    stopped early leaves its remaining gain to the next round, which the
-    level's stopping rule (:func:`_remaining_gain`) sees.  The polish runs
-    where Newton stalls on kinks: on the 15-vertex star polygon of
-    ``validation/failures.py`` (about 850 polishes of curves some 150
-    vertices long) it took 21 s of 44 at ``1e-12``.  Newton's own stop is
-    not relaxed with the tolerance: near a kink its Hessian, from
-    differences of the gradient, is stiff, and the decrement can be far
-    below the length still to gain (measured: a crossing near a corner of
-    ``validation/crossings_sweep.py`` stopped 2.4e-4 high with an estimate of
-    7e-5 when Newton stopped at a decrement of ``1e-4 tol``).
-    """
-    return min(max(1e-5 * tol, 1e-12), 1e-8)
-
-
 def _remaining_gain(gains: list[float]) -> float:
     """What further rounds of a level could still gain, from what its rounds gained so far.
 
@@ -1218,7 +1187,7 @@ def _settle(domain: Domain, metric: Metric, curves: list[_Curve], scale: float, 
     todo = list(curves)
     for _round in range(max_rounds):
         outs = _optimize_many(domain, metric, [(c.X, _normal_modes(c.X, c.modes, c.job.closed), c.job.shift)
-                                               for c in todo], scale, ftol=_polish_ftol(tol))
+                                               for c in todo], scale)
         for c, (X, _) in zip(todo, outs):
             X, modes = _insert_breaks(domain, *_prune_breaks(*_merge_collapsed(*_drop_folds(X, c.modes))))
             if c.job.end_ground is not None:
