@@ -10,7 +10,10 @@ best times per scene, with the values both versions return.
 Scenes (``--family standard``): zigzags of 10 and 100 crossings through a line (``benchmark.zigzag``),
 the 60-degree crossing ``cross60`` and the figure eight ``fig10`` (a circle with itself).  ``--family
 random``: the random interval scenes of ``validation/default_tol.py`` (2 or 3 polylines of 7
-vertices, 1 to 10 crossings), seeds 100 to 116.  ``--tol`` (default 1e-3) is passed to every call;
+vertices, 1 to 10 crossings), seeds 100 to 116.  ``--family circles``: the star polygons of 7, 11 and 15
+vertices (double covers sampled with an odd number of vertices, ``double_cover`` of
+``validation/failures.py``) and the built-in ``fig10``, ``fig13`` and ``nested`` (no warm-up call: use
+``--repeat 1``).  ``--tol`` (default 1e-3) is passed to every call;
 ``--csv`` names the output (default ``ab.csv``).  For example ``python validation/ab.py HEAD~1
 --family random --tol 1e-6 --rounds 2 --repeat 1 --csv ab_random.csv`` (about six minutes).
 """
@@ -41,6 +44,12 @@ if {family!r} == "standard":
     from benchmark import zigzag
     scenes = {{"zigzag10": zigzag(10), "zigzag100": zigzag(100), "cross60": direct.scenes.get("cross60"),
               "fig10": direct.scenes.get("fig10")}}
+elif {family!r} == "circles":
+    import numpy as np
+    scenes = {{f"star{{n}}": direct.scenes.circle_scene(
+        lambda t: np.column_stack([np.cos(2 * t), np.sin(2 * t)]), n=n, name=f"double cover n={{n}}")
+        for n in (7, 11, 15)}}
+    scenes.update({{name: direct.scenes.get(name) for name in ("fig10", "fig13", "nested")}})
 else:
     from conftest import random_crossing_scene
     scenes = {{}}
@@ -77,7 +86,7 @@ def main(argv=None) -> int:
     ap.add_argument("rev", help="the git revision to compare the working tree with")
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--repeat", type=int, default=3)
-    ap.add_argument("--family", choices=["standard", "random"], default="standard")
+    ap.add_argument("--family", choices=["standard", "random", "circles"], default="standard")
     ap.add_argument("--tol", type=float, default=1e-3)
     ap.add_argument("--csv", default="ab.csv", help="output file name, beside this script")
     args = ap.parse_args(argv)
