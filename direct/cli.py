@@ -193,9 +193,10 @@ def summary(scene, result) -> str:
     metric = ", ".join(
         f"{k}={v}" for k, v in s.items()
         if k not in ("metric", "tol", "resolution", "neighbours", "coarsen", "backend", "refine", "second_pass",
-                     "grazing_second_pass", "route_check")
+                     "grazing_second_pass", "route_check", "refined_again")
     )
     grazing = s.get("grazing_second_pass")
+    again = s.get("refined_again")
     lines.append(
         f"metric: {s.get('metric')}{f' ({metric})' if metric else ''}; tol={s.get('tol')}, "
         f"resolution={s.get('resolution')} (coarsen {s.get('coarsen')}), neighbours={s.get('neighbours')}, "
@@ -203,6 +204,7 @@ def summary(scene, result) -> str:
         f"refine={s.get('refine')}, second pass={s.get('second_pass')}"
         + (" (route check of the chosen curves)" if s.get("route_check") else "")
         + (f" (grazing crossings: second pass on {grazing} domain{'s' if grazing > 1 else ''})" if grazing else "")
+        + (f" (short curves refined again: {again} domain solve{'s' if again > 1 else ''})" if again else "")
     )
     lines.append("")
     n = len(result.crossings)

@@ -206,7 +206,10 @@ class Penalty:
         ``backend``, ``refine``, ``second_pass``, ``route_check`` (the
         chosen curves checked against a second grid's routes) and, where a
         grazing crossing forced a second pass, ``grazing_second_pass`` (the
-        number of such domains).
+        number of such domains); ``refined_again``, the number of domain
+        solves whose chosen curves were refined a second time because the
+        absolute tolerance taken from the grid's value was too loose (a
+        grid that overestimates ``J`` many times over, in a narrow valley).
     seconds : float
         Wall time of the computation.
     """
@@ -368,7 +371,8 @@ def boundary_conditions(domain: Domain) -> dict[str, Any]:
     return {"winds": (int(k1), int(k2))}
 
 
-def _settle(grid_costs: dict, solve, refine_keys, bias: float, finish=None):
+def _settle(grid_costs: dict, solve, refine_keys, bias: float, finish=None, cache: dict | None = None,
+            finished: set | None = None):
     """Solve, refine the chosen curves, re-solve with refined lengths until the choice is refined.
 
     ``refine_keys(keys)`` refines the curves of several entries at once (one
@@ -384,10 +388,11 @@ def _settle(grid_costs: dict, solve, refine_keys, bias: float, finish=None):
     overestimate more than the stencil's bias), so a choice made of refined
     entries cannot be beaten by an unrefined one.  From the second round on,
     the entries the next solves would ask for are refined in the same batch
-    (:func:`_foreseen`).
+    (:func:`_foreseen`).  ``cache`` and ``finished`` may bring entries
+    refined, and finished, already.
     """
-    cache: dict = {}
-    finished: set = set()
+    cache = {} if cache is None else dict(cache)
+    finished = set() if finished is None else set(finished)
     for _ in range(2 * len(grid_costs) + 2):
         # the grid's overestimate seen on the refined entries, with a margin, bounds the others' below
         seen = [grid_costs[k] / rp.length for k, rp in cache.items() if rp.length > 0 and np.isfinite(grid_costs[k])]
@@ -676,6 +681,22 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
     atol = 0.1 * tol * grid_value / max(1, len(domain.points))
     if do_refine:
         value, chosen, cache = _settle(grid_costs, solve, refine_keys, bias, finish)
+        # the absolute tolerance (a curve much shorter than the others needs no relative accuracy of its own) came
+        # from the grid's value, which overestimates J many times over where the grid cannot follow a narrow valley
+        # (a hairpin of the deformed curve: 27 times at 128 cells in tests/test_circles.py; validation/
+        # random_closed.py); the chosen curves that stopped on it, short of their relative tolerance, are refined
+        # again with the refined value's, when the grid's was more than twice as large (below that the sum of the
+        # absolute tolerances stays within a fifth of tol * J)
+        loose_atol = 0.1 * tol * value / max(1, len(domain.points))
+        loose = [k for k, _ in chosen if k in cache and atol > 2 * loose_atol
+                 and max(tol * cache[k].length, loose_atol) < cache[k].error_estimate <= atol]
+        if loose:
+            settings["refined_again"] = settings.get("refined_again", 0) + 1  # domain solves, for the record
+            atol = loose_atol
+            stale = set(loose)
+            value, chosen, cache = _settle(grid_costs, solve, refine_keys, bias, finish,
+                                           cache={k: v for k, v in cache.items() if k not in stale},
+                                           finished={k for k, _ in chosen if k not in stale})
     else:
         value, chosen, cache = grid_value, grid_chosen, {}
     curves = []
@@ -720,7 +741,11 @@ def penalty(
     power : float, optional
         ``q`` of ``G = |y1 - y2|^(2q) Id`` or ``p`` of ``g(s) = s^p`` (both default 2).
     tol : float, default 1e-3
-        Relative tolerance of each refined geodesic length.
+        Relative tolerance of each refined geodesic length; a curve much
+        shorter than the others stops once its estimate is below ``tol / 10``
+        of its piece's value shared among the piece's points (taken from the
+        refined value when the grid's was more than twice as large: see
+        ``settings["refined_again"]``).
     resolution : int, default 128
         Grid cells along the longer side of each pair domain at the step of
         the patches around crossing points (in deformed arclength for ``G``,
@@ -848,6 +873,8 @@ def _penalty(scene, metric, power, tol, resolution, neighbours, backend, refine,
         if settings["second_pass"] or grazing:
             other = dict(settings, resolution=max(4, (3 * settings["resolution"]) // 4))
             value2, _, err2, curves2 = _solve_domain(dom, met, other, backend, refine)
+            if "refined_again" in other:
+                settings["refined_again"] = other["refined_again"]
             spread = abs(value2 - value)
             if value2 < value:
                 value, curves = value2, curves2

@@ -34,6 +34,10 @@ nested    the paper's example of section 3.3.4: two unit circles side by
 ring      the example at the end of section 3.4.3: a unit circle kept in
           place and a segment collapsed to its centre; ``J^G = 0`` but
           ``J^g > 0`` (Prop. 17).
+hairpin   a regular octagon folded into a thin loop: two segments of the
+          deformation meet at a hairpin of 0.4 degrees and one crossing
+          closes the loop; ``J^G`` is tiny (3.3e-5) and the grid's value at
+          128 cells is 33 times it (a valley narrower than a cell).
 ========  =====================================================================
 
 Circles are sampled as polylines with the vertices at equal angles; their
@@ -153,6 +157,14 @@ def _ring() -> Scene:
     return Scene((ring, seg), name="ring")
 
 
+def _hairpin() -> Scene:
+    t = 2 * np.pi * np.arange(8) / 8
+    deformed = [[0.554, 0.615], [0.329, 0.559], [-0.798, 0.884], [-1.242, 0.635], [-1.086, 0.371],
+                [-0.167, -1.035], [-0.653, -0.303], [1.138, -1.473]]
+    octagon = np.column_stack([np.cos(t), np.sin(t)])
+    return Scene((Component(octagon, deformed, closed=True, name="hairpin"),), name="hairpin")
+
+
 _BUILTIN: dict[str, Callable[[], Scene]] = {
     "cross": lambda: Scene(cross().components, name="cross"),
     "cross60": lambda: Scene(cross(1, 1, 1, 1, np.pi / 3).components, name="cross60"),
@@ -165,6 +177,7 @@ _BUILTIN: dict[str, Callable[[], Scene]] = {
     "fig13": lambda: _cover(3),
     "nested": _nested,
     "ring": _ring,
+    "hairpin": _hairpin,
 }
 
 
