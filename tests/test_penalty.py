@@ -264,22 +264,23 @@ def test_a_chosen_curve_is_checked_against_a_second_grids_route():
 
 
 def test_the_full_second_pass_runs_from_tol_1e_4_down():
-    """From ``tol=1e-4`` down the route check gives way to the full second pass. Seed 279 of
-    ``validation/default_tol.py``: a curve from a crossing point 0.08 from the boundary has local geodesics along
-    the same side 6 % of its length apart, closer than the check's coarse pass can tell; with the check alone (just
-    above 1e-4) the value is 1.5e-4 too high with an estimate of 2.2e-5 and no warning."""
-    scene = random_crossing_scene(279, n_comp=3, n_vert=7, min_crossings=1, max_crossings=10)
+    """From ``tol=1e-4`` down the route check gives way to the full second pass (the routes of a second grid,
+    the better family kept, the spread added to the estimate). Seed 185 of ``validation/default_tol.py`` is the
+    scene of that study where the check alone (just above 1e-4) lands farthest above the second pass: 1.5e-5,
+    inside its estimate of 1.6e-5. (Seed 279 used to be 1.5e-4 above with an estimate of 2.2e-5 and no warning,
+    a curve whose end had not slid into place along the boundary: fixed at the root since, by the coarse pass's
+    extra rounds.)"""
+    scene = random_crossing_scene(185, n_comp=3, n_vert=7, min_crossings=1, max_crossings=10)
     with warnings.catch_warnings():
-        warnings.simplefilter("error", direct.ToleranceWarning)  # silently off: no warning
+        warnings.simplefilter("error", direct.ToleranceWarning)
         checked = direct.penalty(scene, tol=1.01e-4)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", direct.ToleranceWarning)  # the spread of the two passes is above tol
         res = direct.penalty(scene, tol=1e-4)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", direct.ToleranceWarning)
         tight = direct.penalty(scene, tol=1e-5)
     assert checked.settings["route_check"] and not checked.settings["second_pass"]
     assert res.settings["second_pass"] and not res.settings["route_check"]
-    # every value is the length of real curves up to the Richardson correction: the lower one shows the other high
-    assert checked.value - res.value > max(1e-4 * res.value, 5 * checked.error_estimate)
+    assert abs(checked.value - tight.value) <= checked.error_estimate + tight.error_estimate
     assert abs(res.value - tight.value) <= min(res.error_estimate, 1e-5 * tight.value)
 
 

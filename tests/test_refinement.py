@@ -148,3 +148,23 @@ def test_remaining_gain_is_the_tail_of_a_geometric_series(r):
     assert _remaining_gain([1e-6, 1e-6]) == pytest.approx(1e-6 * _MAX_RATIO / (1 - _MAX_RATIO))
     assert _remaining_gain([1e-6, 0.0]) == 0.0
     assert _remaining_gain([]) == 0.0  # no round (max_rounds=0)
+
+
+def test_an_end_that_meets_the_boundary_at_a_shallow_angle_slides_into_place():
+    """Seed 279 of ``validation/default_tol.py``, pair P1 x P2: the curve from the crossing point (0.079, 0.318) to
+    the side ``x1 = 0``. The 128-cell grid routes it to the side at ``x2 = 0.41``, reached at a shallow angle; the
+    geodesic meets the side at ``x2 = 0.3489``, where P2's vertex line ends on it (a kink of the length along the
+    side). The fine levels, graded towards the end, can hardly slide it, so the coarse pass must: after its first
+    three rounds the end was still 0.034 up the side and the refined curve 7 % too long (estimate 3e-4). The
+    reference: curves with both ends fixed, the end on the side at and beside the vertex line."""
+    scene = random_crossing_scene(279, n_comp=3, n_vert=7, min_crossings=1, max_crossings=10)
+    dom = next(d for d in domains(scene, find_crossings(scene)) if d.pair == (1, 2))
+    met = get_metric("G")
+    k = int(np.argmin(np.abs(dom.points[:, 0] - 0.0791)))
+    _, route = grid_distances(build_graph(dom, met, 128, 16, coarsen=4))
+    rp = refine_many(dom, met, [GeodesicJob(route.candidates(1 + k, 0, 1.0)[0], end_ground=0)], tol=1e-3)[0]
+    y0 = dom.comps[1].params[1]  # P2's first interior vertex
+    fixed = [refine(dom, met, np.array([dom.points[k], [0.0, y]]), tol=1e-4) for y in (y0 - 2e-3, y0, y0 + 2e-3)]
+    assert fixed[1].length < min(fixed[0].length, fixed[2].length)  # the side's kink is where the geodesic ends
+    assert rp.points[-1][0] == 0.0 and abs(rp.points[-1][1] - y0) < 1e-4
+    assert abs(rp.length - fixed[1].length) <= rp.error_estimate + fixed[1].error_estimate
