@@ -37,6 +37,19 @@ def random_crossing_scene(seed: int, n_comp: int = 2, n_vert: int = 5, min_cross
     raise RuntimeError("no random scene with the requested number of crossings")
 
 
+def study_scenes(seeds):
+    """``(seed, scene)`` for the random interval scenes of the validation studies (``validation/default_tol.py``).
+
+    2 polylines of 7 vertices for an even seed, 3 for an odd one, 1 to 10 crossings; the seeds that yield no
+    such scene are skipped.
+    """
+    for seed in seeds:
+        try:
+            yield seed, random_crossing_scene(seed, n_comp=2 + seed % 2, n_vert=7, min_crossings=1, max_crossings=10)
+        except RuntimeError:
+            continue
+
+
 def insert_vertex(comp: direct.Component, seg: int, t: float) -> direct.Component:
     """The same component with a material point added at fraction t of segment seg."""
     ref, dfm = comp.reference_ring, comp.deformed_ring

@@ -37,7 +37,7 @@ import direct
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, "..", "tests"))
-from conftest import random_crossing_scene  # noqa: E402
+from conftest import study_scenes  # noqa: E402
 
 TOLS = (1e-3, 1e-4)
 REFERENCE_TOL = 1e-6
@@ -55,11 +55,7 @@ def _solve(scene, tol):
 
 def main(seeds=range(100, 300)) -> list[dict]:
     rows = []
-    for seed in seeds:
-        try:
-            sc = random_crossing_scene(seed, n_comp=2 + seed % 2, n_vert=7, min_crossings=1, max_crossings=10)
-        except RuntimeError:
-            continue
+    for seed, sc in study_scenes(seeds):
         ref, ref_warned, ref_seconds = _solve(sc, REFERENCE_TOL)
         if ref.value == 0.0:
             continue

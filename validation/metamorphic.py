@@ -20,16 +20,12 @@ import direct
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, "..", "tests"))
-from conftest import insert_vertex, random_crossing_scene, rigid  # noqa: E402
+from conftest import insert_vertex, rigid, study_scenes  # noqa: E402
 
 
 def main(seeds=range(100, 130)):
     rows, bad = [], []
-    for seed in seeds:
-        try:
-            sc = random_crossing_scene(seed, n_comp=2 + seed % 2, n_vert=7, min_crossings=1, max_crossings=10)
-        except RuntimeError:
-            continue
+    for seed, sc in study_scenes(seeds):
         base = direct.penalty(sc)
         rng = np.random.default_rng(seed)
         k = int(rng.integers(len(sc.components)))

@@ -28,7 +28,7 @@ import direct
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, "..", "tests"))
-from conftest import random_crossing_scene  # noqa: E402
+from conftest import study_scenes  # noqa: E402
 
 RESOLUTIONS = (96, 128, 192)
 
@@ -37,11 +37,7 @@ def main(seeds=range(100, 140), tol: float = 1e-5, coarsens=(4,), out: str = "mu
     """Every scene from grids of 96, 128 and 192 cells, for each ``coarsen`` (local refinement; 1: uniform)."""
     rows = []
     grids = [(res, c) for c in coarsens for res in RESOLUTIONS]
-    for seed in seeds:
-        try:
-            sc = random_crossing_scene(seed, n_comp=2 + seed % 2, n_vert=7, min_crossings=1, max_crossings=10)
-        except RuntimeError:
-            continue
+    for seed, sc in study_scenes(seeds):
         runs = {}
         for res, c in grids:
             t0 = time.perf_counter()

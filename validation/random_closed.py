@@ -25,14 +25,16 @@ from __future__ import annotations
 
 import csv
 import os
-import time
-import warnings
+import sys
 
 import numpy as np
 
 import direct
 
 HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, HERE)
+from default_tol import _solve as solve_recording_warnings  # noqa: E402
+
 TOL = 1e-3
 REFERENCE_TOL = 1e-6
 
@@ -49,27 +51,18 @@ def random_closed(seed: int) -> direct.Scene:
     return direct.Scene((direct.Component(ref, dfm, closed=True, name="c"),), name=f"random closed {seed}")
 
 
-def _solve(scene, tol):
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always", direct.ToleranceWarning)
-        t0 = time.perf_counter()
-        res = direct.penalty(scene, tol=tol)
-        seconds = time.perf_counter() - t0
-    return res, any(issubclass(w.category, direct.ToleranceWarning) for w in caught), seconds
-
-
 def main(seeds=range(60)) -> list[dict]:
     rows = []
     for seed in [None, *seeds]:
         sc = direct.scenes.get("hairpin") if seed is None else random_closed(seed)
         try:
-            res, warned, sec = _solve(sc, TOL)
+            res, warned, sec = solve_recording_warnings(sc, TOL)
         except direct.DegenerateError as exc:  # a contact the generic-perturbation rule cannot decide
             print(f"{sc.name}: {exc}")
             continue
         if res.value == 0.0:
             continue
-        ref, ref_warned, ref_sec = _solve(sc, REFERENCE_TOL)
+        ref, ref_warned, ref_sec = solve_recording_warnings(sc, REFERENCE_TOL)
         err = res.value - ref.value
         rows.append(dict(
             scene=sc.name, vertices=sc.components[0].n_vertices, crossings=len(res.crossings), value=res.value,

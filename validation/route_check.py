@@ -30,17 +30,13 @@ import direct
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, "..", "tests"))
-from conftest import random_crossing_scene  # noqa: E402
+from conftest import study_scenes  # noqa: E402
 
 
 def main(seeds=range(100, 300), tol: float = 1e-3) -> list[dict]:
     rows = []
     t_on = t_off = 0.0
-    for seed in seeds:
-        try:
-            sc = random_crossing_scene(seed, n_comp=2 + seed % 2, n_vert=7, min_crossings=1, max_crossings=10)
-        except RuntimeError:
-            continue
+    for seed, sc in study_scenes(seeds):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", direct.ToleranceWarning)
             t0 = time.perf_counter()

@@ -1,6 +1,6 @@
 """What the full second pass adds at ``tol=1e-4``: the route check alone against it, on the default_tol scenes.
 
-Run ``python validation/second_pass.py`` (about eight minutes).  From ``tol=1e-4`` down
+Run ``python validation/second_pass.py`` (about seven minutes).  From ``tol=1e-4`` down
 ``direct.penalty`` solves every domain a second time from the routes of another grid and keeps the
 better family, adding the spread to ``error_estimate``; just above (``tol=1.01e-4``) it only checks
 the chosen curves against the second grid's routes.  For the random interval scenes of
@@ -21,16 +21,12 @@ import direct
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, "..", "tests"))
-from conftest import random_crossing_scene  # noqa: E402
+from conftest import study_scenes  # noqa: E402
 
 
 def main(seeds=range(100, 300)) -> list[dict]:
     rows = []
-    for seed in seeds:
-        try:
-            sc = random_crossing_scene(seed, n_comp=2 + seed % 2, n_vert=7, min_crossings=1, max_crossings=10)
-        except RuntimeError:
-            continue
+    for seed, sc in study_scenes(seeds):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", direct.ToleranceWarning)
             t0 = time.perf_counter()
