@@ -684,7 +684,7 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
         value, chosen, cache = _settle(grid_costs, solve, refine_keys, bias, finish)
         # the absolute tolerance (a curve much shorter than the others needs no relative accuracy of its own) came
         # from the grid's value, which overestimates J many times over where the grid cannot follow a narrow valley
-        # (a hairpin of the deformed curve: 27 times at 128 cells in tests/test_circles.py; validation/
+        # (a hairpin of the deformed curve: 33 times at 128 cells on the built-in scene hairpin; validation/
         # random_closed.py); the chosen curves that stopped on it, short of their relative tolerance, are refined
         # again with the refined value's, when the grid's was more than twice as large (below that the sum of the
         # absolute tolerances stays within a fifth of tol * J)

@@ -7,7 +7,9 @@ so each grid route becomes a polyline whose exact metric length
 (:func:`direct.metric.segment_lengths`) is minimized:
 
 * A coarse pass first (16 segments, each across many cells, where the kinks
-  of the length are small ripples) settles the large-scale shape.
+  of the length are small ripples) settles the large-scale shape, and
+  slides the free ends into place: three rounds, then more while a curve
+  still shortens (:func:`coarse_geodesics`).
 * The polyline then gets a vertex wherever it crosses a vertex parameter of
   either component (the metric's norm jumps there and the geodesic
   refracts), sliding along that line, so that every segment lies in one
