@@ -1126,8 +1126,10 @@ def coarse_geodesics(domain: Domain, metric: Metric, jobs: list[GeodesicJob], n:
     routes = _unfold(domain, metric, [j.route for j in jobs])
     state = [_resampled_with_ends(domain, r, n, j.start_ground, j.end_ground, j.closed) for r, j in zip(routes, jobs)]
     todo = list(range(len(jobs)))
-    before = _lengths(domain, metric, [X for X, _ in state]) if more else None
+    lengths = None  # from the last of the first rounds on: each curve's length before the round
     for r in range(rounds + more):
+        if more and r == rounds - 1:
+            lengths = _lengths(domain, metric, [X for X, _ in state])
         outs = _optimize_many(domain, metric, [(state[i][0], _normal_modes(*state[i], jobs[i].closed), jobs[i].shift)
                                                for i in todo], scale, max_iter=20, polish=False)
         for i, (X, _) in zip(todo, outs):
@@ -1135,17 +1137,13 @@ def coarse_geodesics(domain: Domain, metric: Metric, jobs: list[GeodesicJob], n:
             if jobs[i].end_ground is not None:
                 X, modes = _truncate_at_boundary(domain, jobs[i].end_ground, X, modes)
             state[i] = (X, modes)
-        if r + 1 >= rounds:
-            if not more:
-                break
+        if lengths is not None:  # the curves that this round still shortened go on
             after = _lengths(domain, metric, [state[i][0] for i in todo])
-            moving = before[todo] - after > gain * after
-            before[todo] = after
+            moving = lengths[todo] - after > gain * after
+            lengths[todo] = after
             todo = [i for i, m in zip(todo, moving) if m]
             if not todo:
                 break
-        elif more:
-            before[todo] = _lengths(domain, metric, [state[i][0] for i in todo])
     Xs = [X for X, _ in state]
     return list(zip(Xs, _lengths(domain, metric, Xs).tolist()))
 
