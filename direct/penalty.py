@@ -486,9 +486,10 @@ def _best_of_starts(found: list[RefinedPath]) -> RefinedPath:
 
 
 def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backend, do_refine: bool):
-    """Optimal family of curves on one domain: ``(value, grid_value, error, curves)``.
+    """Optimal family of curves on one domain: ``(value, grid_value, error, curves, refined_again)``.
 
-    ``curves`` lists ``(start, end, polyline, length, error, closed)`` with
+    ``refined_again`` says whether the chosen curves were refined a second time with the refined value's
+    absolute tolerance.  ``curves`` lists ``(start, end, polyline, length, error, closed)`` with
     ``start``/``end`` a point index, ``("ground", g)`` or ``None`` (closed curve).
     """
     # local refinement on the pieces of two intervals only: around a circle the coarse lattice changed which closed
@@ -680,6 +681,7 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
 
     grid_value, grid_chosen = solve(grid_costs)
     atol = 0.1 * tol * grid_value / max(1, len(domain.points))
+    loose: list = []
     if do_refine:
         value, chosen, cache = _settle(grid_costs, solve, refine_keys, bias, finish)
         # the absolute tolerance (a curve much shorter than the others needs no relative accuracy of its own) came
@@ -689,10 +691,10 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
         # again with the refined value's, when the grid's was more than twice as large (below that the sum of the
         # absolute tolerances stays within a fifth of tol * J)
         loose_atol = 0.1 * tol * value / max(1, len(domain.points))
-        loose = [k for k, _ in chosen if k in cache and atol > 2 * loose_atol
-                 and max(tol * cache[k].length, loose_atol) < cache[k].error_estimate <= atol]
+        if atol > 2 * loose_atol:
+            loose = [k for k, _ in chosen
+                     if k in cache and max(tol * cache[k].length, loose_atol) < cache[k].error_estimate <= atol]
         if loose:
-            settings["refined_again"] = settings.get("refined_again", 0) + 1  # domain solves, for the record
             atol = loose_atol
             stale = set(loose)
             value, chosen, cache = _settle(grid_costs, solve, refine_keys, bias, finish,
@@ -712,7 +714,7 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
         for _ in range(count):
             curves.append((start, end, np.asarray(poly, dtype=float), float(length), float(e), key[0] == "closed"))
             err += e
-    return value, grid_value, err, curves
+    return value, grid_value, err, curves, bool(loose)
 
 
 def penalty(
@@ -868,18 +870,19 @@ def _penalty(scene, metric, power, tol, resolution, neighbours, backend, refine,
         # there; the refinement can settle short of that turn with a small estimate, so such domains always get a
         # second start (measured: 1.3e-3 off with an estimate of 1.5e-5 at 0.003 rad and tol 1e-3 without it)
         grazing = refine and allow_second and _min_sine(dom, crossings) < _GRAZING
-        value, grid_value, err, curves = _solve_domain(dom, met, settings, backend, refine)
+        value, grid_value, err, curves, again = _solve_domain(dom, met, settings, backend, refine)
         if grazing and not settings["second_pass"]:
             settings["grazing_second_pass"] = settings.get("grazing_second_pass", 0) + 1  # domains, for the record
         if settings["second_pass"] or grazing:
             other = dict(settings, resolution=max(4, (3 * settings["resolution"]) // 4))
-            value2, _, err2, curves2 = _solve_domain(dom, met, other, backend, refine)
-            if "refined_again" in other:
-                settings["refined_again"] = other["refined_again"]
+            value2, _, err2, curves2, again2 = _solve_domain(dom, met, other, backend, refine)
+            again += again2
             spread = abs(value2 - value)
             if value2 < value:
                 value, curves = value2, curves2
             err = max(err, err2) + spread
+        if again:  # domain solves, for the record
+            settings["refined_again"] = settings.get("refined_again", 0) + int(again)
         m = dom.multiplicity
         total += m * value
         grid_total += m * grid_value
