@@ -1114,8 +1114,8 @@ def coarse_geodesics(domain: Domain, metric: Metric, jobs: list[GeodesicJob], n:
     side by about a segment per round: the fine levels, whose vertices are
     graded towards that end, can hardly move it at all (seed 279 of
     ``validation/default_tol.py``: after 3 rounds an end 0.034 up the side
-    from where the geodesic meets it, and a curve refined from there 7 %
-    too long with an estimate of 3e-4; after 10 rounds the end is in place).
+    from where the geodesic meets it, and a curve refined from there 7.4 %
+    too long with an estimate of 2.6e-4; after 10 rounds the end is in place).
 
     Returns
     -------
