@@ -20,6 +20,7 @@ from .crossings import Crossing, find_crossings
 from .errors import (
     ConvergenceError,
     DegenerateError,
+    DegenerateMetricWarning,
     DirectError,
     NotSupportedError,
     SceneError,
@@ -45,6 +46,7 @@ __all__ = [
     "NotSupportedError",
     "ConvergenceError",
     "ToleranceWarning",
+    "DegenerateMetricWarning",
 ]
 
 __version__ = "0.1.0"

@@ -45,7 +45,8 @@ def _add_method_options(p: argparse.ArgumentParser) -> None:
         choices=["G", "g", "euclid"],
         default="G",
         help="'G': |y1 - y2|^(2q) Id (Example 14, default); 'g': g(s) = s^p (section 3.4.2); "
-        "'euclid': the heuristic metric of section 3.1",
+        "'euclid': the heuristic metric of section 3.1 (degenerate: its values are not certified and always "
+        "warn)",
     )
     p.add_argument("--power", type=float, default=None, metavar="P", help="q of G or p of g (default 2)")
     p.add_argument("--tol", type=float, default=1e-3, help="relative tolerance of each refined geodesic (default 1e-3)")

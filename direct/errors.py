@@ -15,6 +15,7 @@ __all__ = [
     "NotSupportedError",
     "ConvergenceError",
     "ToleranceWarning",
+    "DegenerateMetricWarning",
 ]
 
 
@@ -49,4 +50,19 @@ class ToleranceWarning(UserWarning):
     tolerance asked for was not reached (turn it into an error with
     ``warnings.simplefilter("error", direct.ToleranceWarning)`` in a property
     test that must not accept such a number).
+    """
+
+
+class DegenerateMetricWarning(ToleranceWarning):
+    """A value computed in a degenerate metric, whose ``error_estimate`` cannot cover the choice of routes.
+
+    The heuristic metric of section 3.1 (``metric="euclid"``) vanishes on a
+    direction of every cell, and a grid overestimates lengths along its thin
+    unit ball by tens of percent: the grid may send a curve towards another
+    local geodesic than the shortest, and no refinement brings it back.  The
+    value is the length of an admissible family of curves, so an upper bound
+    of ``J``; the estimate covers the refinement and the spread between two
+    grids, not routes that neither grid found (``validation/euclid.py``).
+    A subclass of :class:`ToleranceWarning`: a property test that turns
+    those into errors refuses these values too.
     """

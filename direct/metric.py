@@ -61,6 +61,8 @@ class Metric(ABC):
     degree: int | None = None
     #: weight of a straight segment near a crossing grows like ``|x|^order`` (used for error estimates)
     order: float = 0.0
+    #: the norm vanishes on a direction: the grid cannot rank routes (see :class:`direct.DegenerateMetricWarning`)
+    degenerate: bool = False
 
     @abstractmethod
     def weight(self, r2: np.ndarray) -> np.ndarray:
@@ -290,13 +292,17 @@ class Euclid(Metric):
     """The heuristic metric of section 3.1: ``dl = |phi'(x1) dx1 - phi'(x2) dx2|``.
 
     Lengths are lengths of the curve ``r_phi o gamma`` in the plane; the
-    metric is degenerate (zero along the diagonal direction where
-    ``phi'(x1) = phi'(x2)``).
+    metric is degenerate (zero along the direction where
+    ``phi'(x1) dx1 = phi'(x2) dx2``).  In the deformed arclengths ``sigma``
+    of two straight segments at angle ``theta`` it is ``dsigma1^2 +
+    dsigma2^2 - 2 cos(theta) dsigma1 dsigma2``: its axes are the diagonals
+    ``dsigma1 = +-dsigma2``, with eigenvalues ``1 -+ cos(theta)``.
     """
 
     name = "euclid"
     degree = 0
     order = 0.0
+    degenerate = True
 
     def weight(self, r2):  # noqa: D102
         return np.ones_like(r2)

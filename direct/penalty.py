@@ -86,7 +86,7 @@ import numpy as np
 from threadpoolctl import ThreadpoolController
 
 from .crossings import Crossing, find_crossings
-from .errors import DirectError, ToleranceWarning
+from .errors import DegenerateMetricWarning, DirectError, ToleranceWarning
 from .geodesics import Backend, closed_curve_distances, grid_distances, torus_distances
 from .grid import Domain, build_graph
 from .matching import solve as solve_assignment
@@ -780,7 +780,9 @@ def penalty(
         geodesic rides a crease of the metric (a vertex line along which
         ``rho`` has a kink) or where several local geodesics compete, two
         starts can settle 1e-5 to 1e-4 apart, a spread the discretization
-        estimate alone does not see.  Default: when ``tol <= 1e-4``.  A
+        estimate alone does not see.  Default: when ``tol <= 1e-4``, and
+        always for a degenerate metric (``euclid``), whose second grid also
+        changes the stencil (32 neighbours, or 16 from 32).  A
         domain with a grazing crossing (the sine of the angle between the
         deformed tangents below 0.1) gets the second pass at every
         tolerance unless ``second_pass=False``.  Without the full second
@@ -803,6 +805,10 @@ def penalty(
     ToleranceWarning
         When ``error_estimate`` exceeds ``tol * value``: the value is
         returned, with the warning that the tolerance was not reached.
+    DegenerateMetricWarning
+        Always, for a degenerate metric (``euclid``), instead of the above:
+        the estimate cannot cover the choice of routes (a subclass of
+        :class:`ToleranceWarning`).
 
     Raises
     ------
@@ -853,7 +859,7 @@ def _penalty(scene, metric, power, tol, resolution, neighbours, backend, refine,
     settings: dict[str, Any] = dict(met.describe())
     allow_second = second_pass is not False  # grazing domains get a second pass unless it is refused
     if second_pass is None:
-        second_pass = tol <= _SECOND_PASS_TOL
+        second_pass = tol <= _SECOND_PASS_TOL or met.degenerate
     settings.update(tol=float(tol), resolution=int(resolution), neighbours=int(neighbours), coarsen=int(coarsen),
                     backend=backend,
                     refine=bool(refine), second_pass=bool(second_pass and refine))
@@ -875,6 +881,8 @@ def _penalty(scene, metric, power, tol, resolution, neighbours, backend, refine,
             settings["grazing_second_pass"] = settings.get("grazing_second_pass", 0) + 1  # domains, for the record
         if settings["second_pass"] or grazing:
             other = dict(settings, resolution=max(4, (3 * settings["resolution"]) // 4))
+            if met.degenerate:  # another stencil too: in a degenerate metric its directions decide which routes win
+                other["neighbours"] = 32 if settings["neighbours"] < 32 else 16
             value2, _, err2, curves2, again2 = _solve_domain(dom, met, other, backend, refine)
             again += again2
             spread = abs(value2 - value)
@@ -900,7 +908,17 @@ def _penalty(scene, metric, power, tol, resolution, neighbours, backend, refine,
                 # mirror image in M_j x M_i: coordinates swapped, signs (hence orientation) reversed
                 pairs.append(Pair((nj, ni), None if ep_ is None else ep_[::-1], None if sp_ is None else sp_[::-1],
                                   ec, sc, length, perr, path[::-1, ::-1].copy(), closed))
-    if refine and total > 0 and err_total > tol * total:
+    if refine and total > 0 and met.degenerate:
+        warnings.warn(
+            f"J^{met.name} = {total:.7g} with an error estimate of {err_total:.2g} ({err_total / total:.1e} relative, "
+            f"tol={tol:g}): this metric is degenerate, and its grids may route a curve towards a longer local "
+            "geodesic than the shortest. The value is the length of an admissible family of curves (an upper "
+            "bound of J); the estimate covers its refinement and the spread between two grids, not the routes "
+            "neither grid found (validation/euclid.py).",
+            DegenerateMetricWarning,
+            stacklevel=3,
+        )
+    elif refine and total > 0 and err_total > tol * total:
         warnings.warn(
             f"J = {total:.7g} has an error estimate of {err_total:.2g} ({err_total / total:.1e} relative), above the "
             f"requested tol={tol:g}: the refinement found geodesics that settle apart from different starts (a "

@@ -173,12 +173,16 @@ def test_searches_from_chosen_terminals_stop_at_their_limits(seed):
 
 
 
-def test_grid_is_uniform_in_deformed_arclength_for_G():
-    """A component stretched unevenly gets cells of equal deformed length: the stencil's bias stays isotropic."""
+@pytest.mark.parametrize("metric", ["G", "euclid"])
+def test_grid_is_uniform_in_deformed_arclength_for_G(metric):
+    """A component stretched unevenly gets cells of equal deformed length: the stencil's bias stays isotropic.
+
+    For euclid the axes of the degenerate norm are then the grid's diagonals on every cell.
+    """
     a = direct.Component([[0, 0], [1, 0], [2, 0]], [[-1, -1], [-0.9, -0.9], [1, 1]], name="A")  # speeds 0.14, 2.6
     b = direct.Component([[0, 1], [2, 1]], [[-1, 1], [1, -1]], name="B")
     sc = direct.Scene((a, b))
-    met = get_metric("G")
+    met = get_metric(metric)
     (dom,) = domains(sc, direct.find_crossings(sc))
     g = build_graph(dom, met, resolution=32)
     grid_nodes = np.setdiff1d(np.arange(g.n_grounds, g.n_nodes), g.crossing_nodes)

@@ -35,7 +35,8 @@ def test_right_angle_closed_form_g(a, b, c, d):
 @pytest.mark.parametrize("a,b,c,d", CASES)
 def test_right_angle_closed_form_euclid(a, b, c, d):
     # |e1 dx1 - e2 dx2| is the Euclidean norm when e1 is orthogonal to e2: distance m to the nearest side
-    res = direct.penalty(direct.scenes.cross(a, b, c, d), "euclid")
+    with pytest.warns(direct.DegenerateMetricWarning):
+        res = direct.penalty(direct.scenes.cross(a, b, c, d), "euclid")
     assert res.value == pytest.approx(2 * min(a, b, c, d), rel=1e-9)
 
 
@@ -62,7 +63,9 @@ def test_no_crossing_gives_zero(rng):
 
 @pytest.mark.parametrize("metric", ["G", "g", "euclid"])
 def test_fig2_two_crossings_opposite_signs(metric):
-    res = direct.penalty("fig2", metric)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", direct.DegenerateMetricWarning)  # euclid's (see test_euclid.py)
+        res = direct.penalty("fig2", metric)
     assert sorted(c.sign for c in res.crossings) == [-1, 1]
     assert res.value > 0
     # the value is the sum of the lengths of the listed curves, both halves of M x M included
