@@ -14,7 +14,9 @@ minutes) does the same at ``tol=1e-4`` (with the full second pass, the default
 from there down), from the locally refined grids (the default) and the
 uniform ones: six starts a scene, ``multistart_tol0.0001.csv``; ``--tol 1e-3``
 at the default tolerance, where no full second pass runs (only the route
-check of the chosen curves), ``multistart_tol0.001.csv``.
+check of the chosen curves), ``multistart_tol0.001.csv``.  ``--metric g --power 2``
+(or 3) runs the non-degenerate family of section 3.4.2 instead of ``G``:
+``multistart_g2_tol1e-05.csv``.
 """
 
 from __future__ import annotations
@@ -33,7 +35,8 @@ from conftest import study_scenes  # noqa: E402
 RESOLUTIONS = (96, 128, 192)
 
 
-def main(seeds=range(100, 140), tol: float = 1e-5, coarsens=(4,), out: str = "multistart.csv") -> list[dict]:
+def main(seeds=range(100, 140), tol: float = 1e-5, coarsens=(4,), out: str = "multistart.csv", metric: str = "G",
+         power: float | None = None) -> list[dict]:
     """Every scene from grids of 96, 128 and 192 cells, for each ``coarsen`` (local refinement; 1: uniform)."""
     rows = []
     grids = [(res, c) for c in coarsens for res in RESOLUTIONS]
@@ -41,7 +44,7 @@ def main(seeds=range(100, 140), tol: float = 1e-5, coarsens=(4,), out: str = "mu
         runs = {}
         for res, c in grids:
             t0 = time.perf_counter()
-            r = direct.penalty(sc, tol=tol, resolution=res, coarsen=c)
+            r = direct.penalty(sc, metric, power=power, tol=tol, resolution=res, coarsen=c)
             runs[res, c] = (r.value, r.error_estimate, time.perf_counter() - t0, len(r.crossings))
         best = min(v[0] for v in runs.values())
         for (res, c), (value, est, dt, n) in runs.items():
@@ -77,6 +80,13 @@ if __name__ == "__main__":
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--tol", type=float, default=1e-5)
     ap.add_argument("--coarsen", type=int, nargs="+", default=[4], help="grids to compare (default 4; 1: uniform)")
+    ap.add_argument("--metric", choices=["G", "g"], default="G")
+    ap.add_argument("--power", type=float, default=None, help="p of g (default 2)")
     args = ap.parse_args()
-    name = "multistart.csv" if args.tol == 1e-5 and args.coarsen == [4] else f"multistart_tol{args.tol:g}.csv"
-    main(tol=args.tol, coarsens=tuple(args.coarsen), out=name)
+    if args.metric == "g":
+        name = f"multistart_g{args.power or 2:g}_tol{args.tol:g}.csv"
+    elif args.tol == 1e-5 and args.coarsen == [4]:
+        name = "multistart.csv"
+    else:
+        name = f"multistart_tol{args.tol:g}.csv"
+    main(tol=args.tol, coarsens=tuple(args.coarsen), out=name, metric=args.metric, power=args.power)
