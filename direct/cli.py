@@ -232,6 +232,8 @@ def summary(scene, result) -> str:
         if math.isfinite(result.error_estimate)
         else f"{_symbol(s)} = {_g(result.value)} (grid Dijkstra alone, no error estimate: its bias is a few per cent)"
     )
+    if math.isfinite(result.error_estimate) and result.pairs:
+        lines.append(f"upper bound (the exact length of the curves below): {_g(result.upper_bound, 10)}")
     half = [p for p in result.pairs if _in_half(p, scene)]
     if half:
         lines.append(

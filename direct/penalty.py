@@ -91,7 +91,7 @@ from .geodesics import Backend, closed_curve_distances, grid_distances, torus_di
 from .grid import Domain, build_graph
 from .matching import solve as solve_assignment
 from .matching import solve_flow, solve_torus
-from .metric import Metric, MetricName, get_metric
+from .metric import Metric, MetricName, get_metric, segment_lengths
 from .refinement import GeodesicJob, RefinedPath, coarse_geodesics, refine_many
 from .scene import Scene
 from .scenes import resolve
@@ -151,6 +151,10 @@ class Pair:
     closed : bool
         True for a closed curve ``gamma: S^1 -> M x M`` (section 3.3.4); its
         polyline then ends where it starts, up to whole turns.
+    polyline_length : float
+        The exact length of ``path`` itself in the metric (segment integrals,
+        no extrapolation): ``length`` is Richardson-extrapolated from it and
+        the coarser levels, and lies within ``error_estimate`` of it.
     """
 
     components: tuple[str, str]
@@ -162,6 +166,7 @@ class Pair:
     error_estimate: float
     path: np.ndarray = field(repr=False)
     closed: bool = False
+    polyline_length: float = float("nan")
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready form (the path as a list of ``[x1, x2]``)."""
@@ -174,6 +179,7 @@ class Pair:
             "length": self.length,
             "error_estimate": self.error_estimate,
             "closed": self.closed,
+            "polyline_length": self.polyline_length,
             "path": self.path.tolist(),
         }
 
@@ -197,6 +203,12 @@ class Penalty:
         of ``validation/failures.md``).
     grid_value : float
         The same program solved with the grid (Dijkstra) distances alone.
+    upper_bound : float
+        The exact length of the returned family of curves (the sum of the
+        pairs' ``polyline_length``): a family with the boundary that eq. (9)
+        asks for, so ``J <= upper_bound`` up to rounding, whatever the
+        estimate says.  ``value`` (extrapolated) lies within
+        ``error_estimate`` of it.
     crossings : list of Crossing
         The geometric crossings, each once (:func:`direct.find_crossings`).
     pairs : list of Pair
@@ -218,6 +230,7 @@ class Penalty:
     value: float
     error_estimate: float
     grid_value: float
+    upper_bound: float
     crossings: list[Crossing]
     pairs: list[Pair]
     settings: dict[str, Any]
@@ -241,6 +254,7 @@ class Penalty:
             "value": self.value,
             "error_estimate": self.error_estimate,
             "grid_value": self.grid_value,
+            "upper_bound": self.upper_bound,
             "crossings": crossings,
             "pairs": [p.to_dict() for p in self.pairs],
             "settings": self.settings,
@@ -252,6 +266,18 @@ class Penalty:
             f"Penalty(value={self.value:.10g}, error_estimate={self.error_estimate:.2g}, "
             f"crossings={len(self.crossings)}, pairs={len(self.pairs)}, metric={self.settings.get('metric')!r})"
         )
+
+
+def _polyline_lengths(domain: Domain, metric: Metric, paths: list) -> list[float]:
+    """Exact lengths of polylines in the parameters of one domain, all segments in one evaluation."""
+    paths = [np.asarray(p, dtype=float) for p in paths]
+    if not paths:
+        return []
+    P = np.vstack([p[:-1] for p in paths])
+    Q = np.vstack([p[1:] for p in paths])
+    seg = segment_lengths(metric, domain.comps, P, Q) if len(P) else np.zeros(0)
+    ends = np.cumsum([len(p) - 1 for p in paths])
+    return [float(x.sum()) for x in np.split(seg, ends[:-1])]
 
 
 def domains(scene: Scene, crossings: list[Crossing]) -> list[Domain]:
@@ -896,18 +922,19 @@ def _penalty(scene, metric, power, tol, resolution, neighbours, backend, refine,
         grid_total += m * grid_value
         err_total += m * err
         ni, nj = names[dom.pair[0]], names[dom.pair[1]]
-        for start, end, path, length, perr, closed in curves:
+        exact = _polyline_lengths(dom, met, [c[2] for c in curves])
+        for (start, end, path, length, perr, closed), plen in zip(curves, exact):
             a = start if isinstance(start, (int, np.integer)) else None
             b = end if isinstance(end, (int, np.integer)) else None
             sp_ = None if a is None else tuple(map(float, dom.points[a]))
             ep_ = None if b is None else tuple(map(float, dom.points[b]))
             sc = None if a is None else int(dom.crossing_ids[a])
             ec = None if b is None else int(dom.crossing_ids[b])
-            pairs.append(Pair((ni, nj), sp_, ep_, sc, ec, length, perr, path, closed))
+            pairs.append(Pair((ni, nj), sp_, ep_, sc, ec, length, perr, path, closed, plen))
             if m == 2:
                 # mirror image in M_j x M_i: coordinates swapped, signs (hence orientation) reversed
                 pairs.append(Pair((nj, ni), None if ep_ is None else ep_[::-1], None if sp_ is None else sp_[::-1],
-                                  ec, sc, length, perr, path[::-1, ::-1].copy(), closed))
+                                  ec, sc, length, perr, path[::-1, ::-1].copy(), closed, plen))
     if refine and total > 0 and met.degenerate:
         warnings.warn(
             f"J^{met.name} = {total:.7g} with an error estimate of {err_total:.2g} ({err_total / total:.1e} relative, "
@@ -933,6 +960,7 @@ def _penalty(scene, metric, power, tol, resolution, neighbours, backend, refine,
         value=float(total),
         error_estimate=float(err_total),
         grid_value=float(grid_total),
+        upper_bound=float(sum(p.polyline_length for p in pairs)),
         crossings=crossings,
         pairs=pairs,
         settings=settings,

@@ -303,3 +303,24 @@ def test_a_result_within_its_tolerance_does_not_warn():
         warnings.simplefilter("error", direct.ToleranceWarning)
         res = direct.penalty("cross60", tol=1e-6)
     assert res.error_estimate <= 1e-6 * res.value
+
+
+@pytest.mark.parametrize("scene,kwargs", [("cross60", {"tol": 1e-5}), ("fig2", {}), ("waves", {}), ("hairpin", {}),
+                                          ("loop", {}), ("fig11", {}), ("ring", {"metric": "g"})])
+def test_upper_bound_is_the_exact_length_of_the_returned_curves(scene, kwargs):
+    """``upper_bound`` sums the exact lengths of the curves returned; the extrapolated value is within its estimate."""
+    res = direct.penalty(scene, **kwargs)
+    assert res.upper_bound == pytest.approx(sum(p.polyline_length for p in res.pairs), rel=1e-13)
+    for p in res.pairs:  # each curve's extrapolated length lies within its own estimate of its polyline
+        assert abs(p.polyline_length - p.length) <= p.error_estimate * (1 + 1e-9) + 1e-15
+    assert abs(res.upper_bound - res.value) <= res.error_estimate * (1 + 1e-9) + 1e-15
+    if scene == "cross60":  # a real family: never below the exact value
+        assert res.upper_bound >= 2 * CROSS60_POINT * (1 - 1e-13)
+
+
+def test_upper_bound_of_the_grid_value_is_the_grid_value():
+    """The grid's edges weigh exact segment lengths, so its paths measure exactly the grid distances."""
+    for scene in ("fig2", "cross60", "waves"):
+        res = direct.penalty(scene, refine=False)
+        assert res.upper_bound == pytest.approx(res.value, rel=1e-11)
+        assert res.upper_bound >= direct.penalty(scene).value * (1 - 1e-6)  # the grid never undercuts J
