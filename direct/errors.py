@@ -59,10 +59,11 @@ class DegenerateMetricWarning(ToleranceWarning):
     The heuristic metric of section 3.1 (``metric="euclid"``) vanishes on a
     direction of every cell, and a grid overestimates lengths along its thin
     unit ball by tens of percent: the grid may send a curve towards another
-    local geodesic than the shortest, and no refinement brings it back.  The
-    value is the length of an admissible family of curves, so an upper bound
-    of ``J``; the estimate covers the refinement and the spread between two
-    grids, not routes that neither grid found (``validation/euclid.py``).
+    local geodesic than the shortest, and no refinement brings it back.
+    ``Penalty.upper_bound``, the exact length of the curves returned, bounds
+    ``J`` from above; the estimate covers their refinement and the spread
+    between two grids, not routes that neither grid found
+    (``validation/euclid.py``).
     A subclass of :class:`ToleranceWarning`: a property test that turns
     those into errors refuses these values too.
     """

@@ -939,8 +939,8 @@ def _penalty(scene, metric, power, tol, resolution, neighbours, backend, refine,
         warnings.warn(
             f"J^{met.name} = {total:.7g} with an error estimate of {err_total:.2g} ({err_total / total:.1e} relative, "
             f"tol={tol:g}): this metric is degenerate, and its grids may route a curve towards a longer local "
-            "geodesic than the shortest. The value is the length of an admissible family of curves (an upper "
-            "bound of J); the estimate covers its refinement and the spread between two grids, not the routes "
+            "geodesic than the shortest. upper_bound, the exact length of the curves returned, bounds J from "
+            "above; the estimate covers their refinement and the spread between two grids, not the routes "
             "neither grid found (validation/euclid.py).",
             DegenerateMetricWarning,
             stacklevel=3,

@@ -17,7 +17,7 @@ def _quiet(scene, **kwargs):
 
 
 def test_every_euclid_value_warns_that_routes_are_not_certified():
-    with pytest.warns(direct.DegenerateMetricWarning, match="upper bound") as record:
+    with pytest.warns(direct.DegenerateMetricWarning, match="bounds J from above") as record:
         res = direct.penalty("fig2", metric="euclid")
     # one warning, a ToleranceWarning too: a property test that refuses those refuses this value
     assert len([w for w in record if issubclass(w.category, direct.ToleranceWarning)]) == 1
