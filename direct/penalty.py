@@ -91,8 +91,8 @@ from .geodesics import Backend, closed_curve_distances, grid_distances, torus_di
 from .grid import Domain, build_graph
 from .matching import solve as solve_assignment
 from .matching import solve_flow, solve_torus
-from .metric import Metric, MetricName, get_metric, segment_lengths
-from .refinement import GeodesicJob, RefinedPath, coarse_geodesics, refine_many
+from .metric import Metric, MetricName, get_metric
+from .refinement import GeodesicJob, RefinedPath, coarse_geodesics, polyline_lengths, refine_many
 from .scene import Scene
 from .scenes import resolve
 from .topology import turning_number, winding_number
@@ -266,18 +266,6 @@ class Penalty:
             f"Penalty(value={self.value:.10g}, error_estimate={self.error_estimate:.2g}, "
             f"crossings={len(self.crossings)}, pairs={len(self.pairs)}, metric={self.settings.get('metric')!r})"
         )
-
-
-def _polyline_lengths(domain: Domain, metric: Metric, paths: list) -> list[float]:
-    """Exact lengths of polylines in the parameters of one domain, all segments in one evaluation."""
-    paths = [np.asarray(p, dtype=float) for p in paths]
-    if not paths:
-        return []
-    P = np.vstack([p[:-1] for p in paths])
-    Q = np.vstack([p[1:] for p in paths])
-    seg = segment_lengths(metric, domain.comps, P, Q) if len(P) else np.zeros(0)
-    ends = np.cumsum([len(p) - 1 for p in paths])
-    return [float(x.sum()) for x in np.split(seg, ends[:-1])]
 
 
 def domains(scene: Scene, crossings: list[Crossing]) -> list[Domain]:
@@ -922,8 +910,8 @@ def _penalty(scene, metric, power, tol, resolution, neighbours, backend, refine,
         grid_total += m * grid_value
         err_total += m * err
         ni, nj = names[dom.pair[0]], names[dom.pair[1]]
-        exact = _polyline_lengths(dom, met, [c[2] for c in curves])
-        for (start, end, path, length, perr, closed), plen in zip(curves, exact):
+        exact = polyline_lengths(dom, met, [c[2] for c in curves])
+        for (start, end, path, length, perr, closed), plen in zip(curves, exact.tolist()):
             a = start if isinstance(start, (int, np.integer)) else None
             b = end if isinstance(end, (int, np.integer)) else None
             sp_ = None if a is None else tuple(map(float, dom.points[a]))

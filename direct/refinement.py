@@ -1055,8 +1055,26 @@ def _optimize_many(domain: Domain, metric: Metric, items: list, scale: float, ma
     return out
 
 
-def _lengths(domain: Domain, metric: Metric, polylines: list[np.ndarray]) -> np.ndarray:
-    """Exact lengths of several polylines, in one evaluation of the metric."""
+def polyline_lengths(domain: Domain, metric: Metric, polylines: list[np.ndarray]) -> np.ndarray:
+    """Exact lengths of several polylines, in one evaluation of the metric.
+
+    Parameters
+    ----------
+    domain : Domain
+        The pair domain whose components the parameters refer to.
+    metric : Metric
+        The metric on M x M.
+    polylines : list of (k, 2) ndarray
+        Polylines in parameters ``(x1, x2)`` (reference arclength; unwrapped
+        across seams on a circle).
+
+    Returns
+    -------
+    (len(polylines),) ndarray
+        Their exact lengths in the metric (:func:`direct.metric.segment_lengths`
+        of every segment, summed per polyline), in length units raised to the
+        metric's homogeneity (for ``G`` with ``q = 2``, length^3).
+    """
     if not polylines:
         return np.empty(0)
     sizes = [len(X) - 1 for X in polylines]
@@ -1129,7 +1147,7 @@ def coarse_geodesics(domain: Domain, metric: Metric, jobs: list[GeodesicJob], n:
     lengths = None  # from the last of the first rounds on: each curve's length before the round
     for r in range(rounds + more):
         if more and r == rounds - 1:
-            lengths = _lengths(domain, metric, [X for X, _ in state])
+            lengths = polyline_lengths(domain, metric, [X for X, _ in state])
         outs = _optimize_many(domain, metric, [(state[i][0], _normal_modes(*state[i], jobs[i].closed), jobs[i].shift)
                                                for i in todo], scale, max_iter=20, polish=False)
         for i, (X, _) in zip(todo, outs):
@@ -1138,14 +1156,14 @@ def coarse_geodesics(domain: Domain, metric: Metric, jobs: list[GeodesicJob], n:
                 X, modes = _truncate_at_boundary(domain, jobs[i].end_ground, X, modes)
             state[i] = (X, modes)
         if lengths is not None:  # the curves that this round still shortened go on
-            after = _lengths(domain, metric, [state[i][0] for i in todo])
+            after = polyline_lengths(domain, metric, [state[i][0] for i in todo])
             moving = lengths[todo] - after > gain * after
             lengths[todo] = after
             todo = [i for i, m in zip(todo, moving) if m]
             if not todo:
                 break
     Xs = [X for X, _ in state]
-    return list(zip(Xs, _lengths(domain, metric, Xs).tolist()))
+    return list(zip(Xs, polyline_lengths(domain, metric, Xs).tolist()))
 
 
 def coarse_geodesic(
@@ -1217,7 +1235,7 @@ def _settle(domain: Domain, metric: Metric, curves: list[_Curve], scale: float, 
             if c.job.start_ground is not None:
                 modes = _corner_switch(domain, metric, X, modes, 0)
             c.X, c.modes = X, modes
-        L_new = _lengths(domain, metric, [c.X for c in todo])
+        L_new = polyline_lengths(domain, metric, [c.X for c in todo])
         more = []
         for c, L in zip(todo, L_new):
             c.gains.append(max(c.length - L, 0.0))
@@ -1279,7 +1297,7 @@ def refine_many(
     routes = [np.asarray(job.route, dtype=float) for job in jobs]
     if todo:
         coarse = coarse_geodesics(domain, metric, [jobs[k] for k in todo])
-        direct_len = _lengths(domain, metric, [routes[k] for k in todo])
+        direct_len = polyline_lengths(domain, metric, [routes[k] for k in todo])
         for k, (X, L), Lr in zip(todo, coarse, direct_len):
             if L <= Lr:
                 routes[k] = X
@@ -1293,7 +1311,7 @@ def refine_many(
         for c in live:
             if not c.job.closed:
                 c.X, c.modes = _grade_ends(domain, c.X, c.modes, c.job.start_ground, c.job.end_ground, scale)
-        for c, L in zip(live, _lengths(domain, metric, [c.X for c in live])):
+        for c, L in zip(live, polyline_lengths(domain, metric, [c.X for c in live])):
             c.length = L
         _settle(domain, metric, live, scale, tol, max_rounds)
         nxt = []

@@ -151,6 +151,7 @@ def test_paths_recompute_their_lengths(seed):
         for p in res.pairs:
             comps = (sc.components[names.index(p.components[0])], sc.components[names.index(p.components[1])])
             exact = segment_lengths(met, comps, p.path[:-1], p.path[1:]).sum()
+            assert p.polyline_length == pytest.approx(exact, rel=1e-12)  # what upper_bound sums
             # the polyline is a real curve: its exact length bounds the extrapolated one from above
             assert exact >= p.length - 1e-12 * max(exact, 1e-300)
             assert exact == pytest.approx(p.length, rel=2e-3, abs=1e-14)
