@@ -371,7 +371,8 @@ def _dedupe_min(r, c, w, k, n_grounds: int, first_point: int):
 def _grid_coordinate(domain: Domain, metric: Metric, axis: int) -> tuple[np.ndarray, np.ndarray] | None:
     """Knots ``(local, grid)`` of the coordinate in which the grid of one axis is uniform, or None (uniform).
 
-    For ``G`` the length element is ``rho |(phi'(x1) dx1, phi'(x2) dx2)|``: in the
+    The metrics that ask for it (``Metric.deformed_grid``) get a grid uniform
+    in the deformed arclength.  For ``G`` the length element is ``rho |(phi'(x1) dx1, phi'(x2) dx2)|``: in the
     deformed arclength ``sigma`` of each component it is isotropic,
     ``rho |(d sigma1, d sigma2)|``, so a grid uniform in ``sigma`` has the
     stencil's isotropic bias (2.75 % with 16 neighbours).  Uniform in the
@@ -387,7 +388,7 @@ def _grid_coordinate(domain: Domain, metric: Metric, axis: int) -> tuple[np.ndar
     (Euclidean in reference arclength) keeps the uniform grid, and so does
     the annulus, whose local axes mix the two parameters.
     """
-    if metric.name not in ("G", "euclid") or domain.kind == "annulus":
+    if not metric.deformed_grid or domain.kind == "annulus":
         return None
     B = domain.basis
     col = B[:, axis]

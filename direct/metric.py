@@ -63,6 +63,9 @@ class Metric(ABC):
     order: float = 0.0
     #: the norm vanishes on a direction: the grid cannot rank routes (see :class:`direct.DegenerateMetricWarning`)
     degenerate: bool = False
+    #: grids uniform in the deformed arclength of each component, where the norm's axes are the stencil's
+    #: (see :func:`direct.grid.build_graph`); otherwise uniform in the reference arclength
+    deformed_grid: bool = False
 
     @abstractmethod
     def weight(self, r2: np.ndarray) -> np.ndarray:
@@ -156,6 +159,7 @@ class GFamily(Metric):
     label: str = "h"
 
     name = "G"
+    deformed_grid = True  # isotropic in the deformed arclengths
 
     def weight(self, r2):  # noqa: D102
         return np.sqrt(self.h(r2))
@@ -303,6 +307,7 @@ class Euclid(Metric):
     degree = 0
     order = 0.0
     degenerate = True
+    deformed_grid = True  # the axes of the norm on the stencil's diagonals
 
     def weight(self, r2):  # noqa: D102
         return np.ones_like(r2)
