@@ -43,11 +43,12 @@ TOLS = (1e-3, 1e-4)
 REFERENCE_TOL = 1e-6
 
 
-def _solve(scene, tol):
+def _solve(scene, tol, **kwargs):
+    """``(result, warned, seconds)`` of ``direct.penalty(scene, tol=tol, **kwargs)``, ToleranceWarnings recorded."""
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", direct.ToleranceWarning)
         t0 = time.perf_counter()
-        res = direct.penalty(scene, tol=tol)
+        res = direct.penalty(scene, tol=tol, **kwargs)
         seconds = time.perf_counter() - t0
     warned = any(issubclass(w.category, direct.ToleranceWarning) for w in caught)
     return res, warned, seconds

@@ -28,7 +28,6 @@ from __future__ import annotations
 import csv
 import os
 import sys
-import time
 import warnings
 
 import direct
@@ -37,6 +36,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
 sys.path.insert(0, os.path.join(HERE, "..", "tests"))
 from conftest import random_crossing_scene  # noqa: E402
+from default_tol import _solve as solve_recording_warnings  # noqa: E402
 from random_closed import random_closed  # noqa: E402
 
 GRIDS = [(nb, res) for nb in (16, 32) for res in (64, 96, 128, 192, 256)]
@@ -60,12 +60,7 @@ def main(open_seeds=range(20), closed_seeds=range(12), tols=(1e-3, 1e-5)) -> lis
         if best == 0.0:
             continue  # nothing to compare (no crossing, the turning number right)
         for tol in tols:
-            with warnings.catch_warnings(record=True) as caught:
-                warnings.simplefilter("always")
-                t0 = time.perf_counter()
-                res = direct.penalty(scene, metric="euclid", tol=tol)
-                dt = time.perf_counter() - t0
-            warned = any(issubclass(w.category, direct.ToleranceWarning) for w in caught)
+            res, warned, dt = solve_recording_warnings(scene, tol, metric="euclid")
             over = res.value - best > res.error_estimate + 1e-12 * best
             rows.append(dict(kind=kind, seed=seed, tol=tol, value=res.value, best_of_grids=best,
                              relative_error=(res.value - best) / best,
