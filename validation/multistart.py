@@ -1,6 +1,6 @@
 """Does ``error_estimate`` cover the choice between local geodesics?  Three starts per scene.
 
-Run ``python validation/multistart.py`` (about nine minutes).  For random
+Run ``python validation/multistart.py`` (five to seven minutes).  For random
 interval scenes (2 or 3 polylines of 7 vertices, 1 to 10 crossings,
 ``tests/conftest.random_crossing_scene``) it computes ``J`` at ``tol=1e-5``
 from the routes of grids of 96, 128 and 192 cells.  Every result is the
