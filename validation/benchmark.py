@@ -1,6 +1,6 @@
 """Side-by-side benchmark of ways to compute J, in one process.
 
-Run ``python validation/benchmark.py`` (about two minutes).  It writes, beside
+Run ``python validation/benchmark.py`` (about four minutes).  It writes, beside
 this file, ``benchmark.csv`` (one row per run), ``benchmark.png`` (relative
 error against wall time, log-log) and ``benchmark.md`` (a summary with
 ratios).  Times are wall times on a shared machine: read the ratios, and the
@@ -25,7 +25,10 @@ searches, then the refinement) at the same finest step (128 cells) on zigzags of
 3, 10, 30 and 100 crossings: the networkx pipeline on the uniform grid of that
 step (the straightforward implementation) and on the same locally refined
 graph; also the networkx grid stage followed by this refinement, and this
-pipeline on the uniform grid.
+pipeline on the uniform grid.  Last, the ratio of the straightforward networkx
+pipeline to this one against the finest step (64 to 256 cells, 384 on the
+10-crossing zigzag), on zigzags of 3, 10 and 30 crossings: networkx's cost
+grows with the number of grid nodes, this pipeline's refinement does not.
 """
 
 from __future__ import annotations
@@ -41,6 +44,9 @@ from direct.matching import brute_force, solve
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 EXACT = 2 * 0.2581226580725618  # J^G of cross60 (shared/NUMERICS.md)
+#: zigzags and finest steps (cells) of the sweep of the networkx ratio against the resolution
+SWEEP_CROSSINGS = (3, 10, 30)
+SWEEP_RESOLUTIONS = (64, 128, 192, 256)
 
 
 def calibration() -> float:
@@ -162,6 +168,19 @@ def main() -> list[dict]:
         rows.append(dict(method="pipeline, scipy, uniform grid", setting=f"crossings={n}", value=res.value,
                          rel_error="", seconds=dt))
 
+    # the same ratio against the resolution: the straightforward networkx pipeline (uniform grid, full searches)
+    # against this whole pipeline at finest steps of 64 to 256 cells (384 on the 10-crossing zigzag); the
+    # networkx value's relative error is measured against this pipeline's value at the same step
+    for n in SWEEP_CROSSINGS:
+        sc = zigzag(n)
+        for resolution in SWEEP_RESOLUTIONS + ((384,) if n == 10 else ()):
+            ours, dt = timed(direct.penalty, sc, resolution=resolution, repeat=2)
+            rows.append(dict(method=f"sweep, direct, {n} crossings", setting=f"N={resolution}", value=ours.value,
+                             rel_error=ours.error_estimate / ours.value, seconds=dt))
+            res, dt = timed(direct.penalty, sc, refine=False, backend="networkx", resolution=resolution, coarsen=1)
+            rows.append(dict(method=f"sweep, networkx, {n} crossings", setting=f"N={resolution}", value=res.value,
+                             rel_error=abs(res.value - ours.value) / ours.value, seconds=dt))
+
     with open(os.path.join(HERE, "benchmark.csv"), "w", newline="") as fh:
         w = csv.DictWriter(fh, fieldnames=["method", "setting", "value", "rel_error", "seconds"])
         w.writeheader()
@@ -177,7 +196,7 @@ def _chart(rows):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, (ax, ax2) = plt.subplots(1, 2, figsize=(12, 4.6))
+    fig, (ax, ax2, ax3) = plt.subplots(1, 3, figsize=(17, 4.6))
 
     def lines(axis, series, x, y):
         """One log-log line per ``(method, style, label)`` of ``series``, points sorted by ``x``."""
@@ -205,8 +224,30 @@ def _chart(rows):
     ax2.set_ylabel("wall time per call (s)")
     ax2.set_title("cost against crossings, equal finest step (128 cells)")
     ax2.legend(fontsize=8)
+    # the networkx ratio against the resolution
+    for n, style in zip(SWEEP_CROSSINGS, ("o-", "s-", "d-")):
+        ratio = _sweep_ratios(rows, n)
+        if ratio:
+            ax3.loglog(list(ratio), list(ratio.values()), style, label=f"zigzag, {n} crossings")
+    ax3.axhline(50, color="k", ls="--", lw=0.8, label="issue 4 target (50 x)")
+    steps = sorted({int(r["setting"].split("=")[1]) for r in rows if r["method"].startswith("sweep, direct")})
+    ax3.set_xticks(steps, [str(k) for k in steps])
+    ax3.minorticks_off()
+    ax3.set_xlabel("finest grid step (cells along the longer side)")
+    ax3.set_ylabel("networkx pipeline time / this pipeline's time")
+    ax3.set_title("straightforward networkx pipeline against this one")
+    ax3.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(os.path.join(HERE, "benchmark.png"), dpi=120)
+
+
+def _sweep_ratios(rows, n: int) -> dict[int, float]:
+    """networkx pipeline time over this pipeline's, per finest step, on the ``n``-crossing zigzag."""
+    def times(method):
+        return {int(r["setting"].split("=")[1]): r["seconds"] for r in rows if r["method"] == method}
+
+    ours, nx = times(f"sweep, direct, {n} crossings"), times(f"sweep, networkx, {n} crossings")
+    return {res: nx[res] / ours[res] for res in sorted(ours) if res in nx}
 
 
 def _summary(rows, cal):
@@ -254,6 +295,12 @@ def _summary(rows, cal):
                   f"graph); networkx grid stage with this refinement {t['pipeline, networkx'] / ours:.1f} x; the "
                   f"local refinement makes the pipeline {t['pipeline, scipy, uniform grid'] / ours:.2f} x faster "
                   f"and the scipy grid stage {t['uniform grid stage, scipy'] / t['grid stage, scipy']:.2f} x."]
+    for n in SWEEP_CROSSINGS:
+        ratio = _sweep_ratios(rows, n)
+        nx_err = [r["rel_error"] for r in rows if r["method"] == f"sweep, networkx, {n} crossings"]
+        lines += [f"- the same ratio against the finest step, zigzag with {n} crossings: "
+                  + ", ".join(f"{v:.1f} x at {k} cells" for k, v in ratio.items())
+                  + f" (networkx values {min(nx_err):.1e} to {max(nx_err):.1e} relative from this pipeline's)."]
     with open(os.path.join(HERE, "benchmark.md"), "w") as fh:
         fh.write("\n".join(lines) + "\n")
     print("\n".join(lines))
