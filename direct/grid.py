@@ -252,6 +252,11 @@ class GridGraph:
         For a node joined to a ground, where its cheapest edge to that ground
         meets the boundary, in local coordinates, per ground (NaN otherwise):
         shape ``(n_grounds, n_nodes, 2)``.
+    exit_bends : dict
+        ``(ground, node) -> (k, 2) ndarray``: where the chosen edge from a
+        crossing point to the boundary bends on its way (a valley of ``rho``
+        followed across vertex lines, see :func:`_valley_rays`), from the
+        node to the exit, in local coordinates.  Straight edges are absent.
     rows, cols, weights : ndarray
         The edges (``rows < cols``) and their exact metric lengths.
     winds : (n_edges, 2) ndarray of int
@@ -280,6 +285,7 @@ class GridGraph:
     shape: tuple[int, int] = field(default=(0, 0))
     coarsen: int = 1
     ticks: tuple = (np.zeros(0), np.zeros(0))
+    exit_bends: dict = field(default_factory=dict)
 
     @property
     def cell(self) -> np.ndarray:
@@ -335,8 +341,10 @@ class GridGraph:
         pts = []
         if nodes[0] < ng:
             pts.append(self.exit_points[nodes[0], nodes[1]])
+            pts += list(self.exit_bends.get((nodes[0], nodes[1]), ())[::-1])
         pts += [self.coords[v] for v in nodes if v >= ng]
         if nodes[-1] < ng:
+            pts += list(self.exit_bends.get((nodes[-1], nodes[-2]), ()))
             pts.append(self.exit_points[nodes[-1], nodes[-2]])
         st = np.array(pts)
         S, V = self.domain.local_lengths
@@ -492,6 +500,80 @@ def _extended(ticks: np.ndarray, periodic: bool, idx: np.ndarray) -> np.ndarray:
     lo = ticks[0] + (idx - 0) * (ticks[1] - ticks[0])
     hi = ticks[-1] + (idx - n) * (ticks[-1] - ticks[-2])
     return np.where(idx < 0, lo, np.where(idx > n, hi, ticks[i]))
+
+
+def _valley_rays(domain: Domain, metric: Metric, pts: np.ndarray):
+    """The valleys of ``rho`` out of crossing points, followed in deformed arclength across vertex lines.
+
+    In a rectangle or triangle (whose local coordinates are the parameters)
+    ``rho`` is smallest near a crossing point along the diagonals of the
+    deformed arclengths ``(sigma1, sigma2)``, where both arms move at once;
+    :func:`build_graph` adds straight moves along them, with the speeds at
+    the point.  Past a vertex line the speed changes and a straight move in
+    the parameters leaves the valley: a crossing 0.024 from a side, on an arm
+    40 times slower beyond a vertex 0.007 away, got a route to the far side
+    of the corner, 137 % too long, at 128 cells.  Here each of the four
+    diagonals is followed in ``sigma`` up to the boundary: in the parameters
+    a polyline that bends on every vertex line it crosses, with the exact
+    length of that polyline.  Only the rays that bend are returned (the
+    others are the straight moves).
+
+    Returns
+    -------
+    owner : (m,) ndarray of int
+        Crossing point of each ray.
+    exits : (m, 2) ndarray
+        Where each ray meets the boundary.
+    bends : list of (k, 2) ndarray
+        The points where each ray bends, from the crossing point to the exit.
+    weights : (m,) ndarray
+        Exact metric length of each ray.
+    """
+    knots = []
+    for comp in domain.comps:
+        speed = np.linalg.norm(comp.velocities, axis=1)
+        speed = np.maximum(speed, 1e-6 * max(float(speed.mean()), 1e-300))  # sigma strictly increasing
+        knots.append((comp.params, np.concatenate([[0.0], np.cumsum(speed * np.diff(comp.params))])))
+    n = len(pts)
+    owner = np.repeat(np.arange(n), 4)
+    sg = np.tile(np.array([[1.0, 1.0], [1.0, -1.0], [-1.0, 1.0], [-1.0, -1.0]]), (n, 1))
+    s0 = np.column_stack([np.interp(pts[owner, k], *knots[k]) for k in (0, 1)])
+    total = np.array([knots[0][1][-1], knots[1][1][-1]])
+    t_exit = np.where(sg > 0, total - s0, s0).min(axis=1)
+    if domain.kind == "triangle":  # inside sigma2 > sigma1 (one component): out through the diagonal
+        closing = sg[:, 1] < sg[:, 0]
+        gap = np.where(closing, s0[:, 1] - s0[:, 0], 0.0) / np.where(closing, sg[:, 0] - sg[:, 1], 1.0)
+        t_exit = np.where(closing, np.minimum(t_exit, gap), t_exit)
+    t_exit = np.maximum(t_exit, 0.0)
+    # times at which each ray meets an interior vertex line of either axis, strictly before its exit
+    T = np.hstack([(knots[k][1][1:-1][None, :] - s0[:, k:k + 1]) * sg[:, k:k + 1] for k in (0, 1)])
+    eps = 1e-12 * max(float(total.max()), 1e-300)
+    inside = (T > eps) & (T < t_exit[:, None] - eps)
+    count = inside.sum(axis=1)
+    bent = count > 0
+    if not bent.any():
+        return np.zeros(0, dtype=np.int64), np.zeros((0, 2)), [], np.zeros(0)
+    T = np.where(inside, T, np.inf)[bent]
+    T.sort(axis=1)
+    T = T[:, :count.max()]
+    owner, sg, s0, t_exit, count = owner[bent], sg[bent], s0[bent], t_exit[bent], count[bent]
+    m = len(owner)
+    # every ray's times: 0, its bends, its exit (inf pads the shorter rows)
+    times = np.hstack([np.zeros((m, 1)), T, np.full((m, 1), np.inf)])
+    times[np.arange(m), count + 1] = t_exit
+    ok = np.isfinite(times)
+    row = np.nonzero(ok)[0]
+    t = times[ok]
+    sig = s0[row] + sg[row] * t[:, None]
+    X = np.column_stack([np.interp(sig[:, k], knots[k][1], knots[k][0]) for k in (0, 1)])
+    X[np.flatnonzero(np.r_[True, row[1:] != row[:-1]])] = pts[owner]  # the crossing points themselves
+    seg = np.flatnonzero(row[1:] == row[:-1])  # consecutive points of one ray
+    w = segment_lengths(metric, domain.comps, X[seg], X[seg + 1])
+    weights = np.maximum(np.bincount(row[seg], weights=w, minlength=m), _TINY)
+    last = np.flatnonzero(np.r_[row[1:] != row[:-1], True])
+    first = np.flatnonzero(np.r_[True, row[1:] != row[:-1]])
+    bends = [X[a + 1:b] for a, b in zip(first.tolist(), last.tolist())]
+    return owner, X[last], bends, weights
 
 
 def build_graph(
@@ -706,6 +788,14 @@ def build_graph(
                                   np.round(shift[:, 1] / V) if pv else 0 * shift[:, 1]]).astype(np.int64)
             add(cross_nodes[a[near]], cross_nodes[b[near]], pts[a[near]], pts[a[near]] + delta[near], False, kk[near])
 
+    n_bent = 0
+    if n_pts and domain.kind in ("rect", "triangle"):  # last, so that a tie keeps the straight moves
+        owner, exits, bends, bent_w = _valley_rays(domain, metric, pts)
+        n_bent = len(owner)
+        if n_bent:
+            add(cross_nodes[owner], np.zeros(n_bent, dtype=np.int64), pts[owner], exits, True,
+                np.zeros((n_bent, 2), dtype=np.int64))
+
     inner, other = edges
     n_inner = sum(len(e[0]) for e in inner)
     rows, cols = (np.concatenate([e[i] for e in inner + other]) for i in (0, 1))
@@ -715,6 +805,8 @@ def build_graph(
     identity = np.array_equal(domain.basis, np.eye(2))  # then local coordinates are parameters (no copies)
     w = np.maximum(segment_lengths(metric, domain.comps, P if identity else domain.to_param(P),
                                    Q if identity else domain.to_param(Q)), _TINY)
+    if n_bent:
+        w[len(w) - n_bent:] = bent_w
     # grid edges are unique: only oriented rows < cols; the others are deduplicated
     r, c, kw = rows[:n_inner], cols[:n_inner], winds[:n_inner]
     swap = r > c
@@ -725,6 +817,11 @@ def build_graph(
     exit_points = np.full((max(ng, 1), len(coords), 2), np.nan)
     g = ground[kept]
     exit_points[rs[g], cs[g]] = np.take(Q[n_inner:], kept[g], axis=0)  # grounds have the smallest indices: rows
+    exit_bends = {}
+    if n_bent:
+        first_bent = len(rows) - n_inner - n_bent
+        for k in np.flatnonzero(g & (kept >= first_bent)).tolist():  # the chosen exits that are bent rays
+            exit_bends[(int(rs[k]), int(cs[k]))] = bends[int(kept[k]) - first_bent]
     r, c, w = np.concatenate([r, rs]), np.concatenate([c, cs]), np.concatenate([w[:n_inner], ws])
     winds = np.concatenate([kw, ks])
     return GridGraph(
@@ -733,6 +830,7 @@ def build_graph(
         coords=coords,
         crossing_nodes=cross_nodes,
         exit_points=exit_points,
+        exit_bends=exit_bends,
         rows=r,
         cols=c,
         weights=w,

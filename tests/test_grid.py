@@ -369,3 +369,45 @@ def test_a_crossing_point_keeps_its_window_whatever_the_patch():
 
     for a, b in zip(uniform.crossing_nodes, bare.crossing_nodes):
         assert grid_edges(bare, b) == grid_edges(uniform, a) > 0
+
+
+def test_valley_rays_bend_on_vertex_lines_and_weigh_their_exact_length():
+    """The valleys of ``rho`` out of a crossing point, followed in deformed arclength (``_valley_rays``): a
+    polyline from the point to the boundary, straight in each cell, whose diagonals in ``sigma`` hold
+    ``d sigma1 = +-d sigma2``; its weight is its exact length, and a chosen bent exit gives its bends to the
+    route."""
+    from direct.grid import _valley_rays
+
+    # one crossing 0.024 from a side of A, whose first piece is 40 times slower than the rest
+    a, b, c, d, alpha = 0.024, 0.74, 0.032, 1.84, 3.04
+    e = np.array([np.cos(alpha), np.sin(alpha)])
+    A = direct.Component([[0, 0], [0.38, 0], [0.76, 0]], [[-a, 0], [-a + 0.023 * (a + b), 0], [b, 0]], name="A")
+    B = direct.Component([[0, 5], [(c + d) / 2, 5], [c + d, 5]], [-c * e, (-c + 0.27 * (c + d)) * e, d * e], name="B")
+    scene = direct.Scene((A, B))
+    dom = domains(scene, direct.find_crossings(scene))[0]
+    metric = G()
+    owner, exits, bends, weights = _valley_rays(dom, metric, dom.points)
+    assert len(owner) >= 1 and all(len(bk) >= 1 for bk in bends)
+    sigma = []
+    for comp in dom.comps:
+        speed = np.linalg.norm(comp.velocities, axis=1)
+        sigma.append(np.concatenate([[0.0], np.cumsum(speed * np.diff(comp.params))]))
+    S, V = dom.local_lengths
+    for k in range(len(owner)):
+        poly = np.vstack([dom.points[owner[k]], bends[k], exits[k]])
+        # on the boundary at the end, inside before it
+        assert min(poly[-1, 0], S - poly[-1, 0], poly[-1, 1], V - poly[-1, 1]) <= 1e-12
+        # a diagonal of the deformed arclengths
+        s = np.column_stack([np.interp(poly[:, j], dom.comps[j].params, sigma[j]) for j in (0, 1)])
+        steps = np.diff(s, axis=0)
+        assert np.allclose(np.abs(steps[:, 0]), np.abs(steps[:, 1]), rtol=1e-9, atol=1e-15)
+        # every bend on a vertex line of either component
+        for bend in bends[k]:
+            assert min(np.abs(dom.comps[0].params - bend[0]).min(), np.abs(dom.comps[1].params - bend[1]).min()) < 1e-12
+        assert weights[k] == pytest.approx(segment_lengths(metric, dom.comps, poly[:-1], poly[1:]).sum(), rel=1e-12)
+    graph = build_graph(dom, metric, resolution=128, coarsen=4)
+    assert graph.exit_bends  # the cheapest way out of the point is a bent valley
+    (g, node), pts = next(iter(graph.exit_bends.items()))
+    path = graph.node_path([node, g])
+    assert np.allclose(path[1:-1], pts) and np.allclose(path[-1], graph.exit_points[g, node])
+    assert np.allclose(graph.node_path([g, node]), path[::-1])

@@ -104,3 +104,53 @@ def test_a_fold_next_to_the_crossing_point_is_dropped():
     for p in res.pairs:
         d = np.diff(p.path, axis=0)
         assert ((d[:-1] * d[1:]).sum(axis=1) >= 0).all()  # no turn back anywhere
+
+
+def _slowed(arms, alpha, cuts, lengths=None):
+    """``cross(*arms, angle=alpha)`` with each arm cut at the fraction ``cuts[k]`` of its deformed length, the
+    reference vertices equally spaced over ``lengths[k]`` (default: the arm's length): the speed jumps at the
+    cut, and differs between the arms (``G`` sees neither, Example 14)."""
+    a, b, c, d = arms
+    lengths = (a + b, c + d) if lengths is None else lengths
+    e = np.array([np.cos(alpha), np.sin(alpha)])
+    comps = []
+    for k, (start, end) in enumerate(((np.array([-a, 0.0]), np.array([b, 0.0])), (-c * e, d * e))):
+        t = np.array([0.0, cuts[k], 1.0])
+        length = lengths[k]
+        comps.append(direct.Component(np.column_stack([[0.0, length / 2, length], [10.0 * k] * 3]),
+                                      start + t[:, None] * (end - start), name="AB"[k]))
+    return direct.Scene(tuple(comps))
+
+
+def test_a_valley_out_of_a_crossing_is_followed_across_a_vertex_line():
+    """A crossing 0.024 from a side, on an arm 40 times slower beyond a vertex 0.007 away, at 174 degrees: the
+    straight move along the valley (with the speeds at the point) leaves it past the vertex line, and the
+    grid's one route went to the far side of the corner, 137 % too long with an estimate of 1.6e-5
+    (``second_pass=False``; by default the second grid found the right side, with the spread, 137 %, as the
+    estimate).  The valley is now followed in deformed arclength (``direct.grid._valley_rays``)."""
+    arms, alpha = (0.024, 0.74, 0.032, 1.84), 3.04
+    exact = crossing_reference(alpha, *arms)
+    scene = _slowed(arms, alpha, (0.023, 0.27))
+    for kwargs in ({"second_pass": False}, {}):
+        res = direct.penalty(scene, tol=1e-5, **kwargs)
+        err = abs(res.value - exact)
+        assert err <= 1e-5 * exact
+        assert err <= res.error_estimate <= 1e-5 * exact
+
+
+@pytest.mark.filterwarnings("ignore::direct.ToleranceWarning")  # at 1e-7 the estimate (5e-7) exceeds tol
+@pytest.mark.parametrize("tol", [1e-3, 1e-5, 1e-7])
+def test_an_end_on_the_boundary_of_a_stretched_domain_slides_into_place(tol):
+    """Arms whose speeds differ 14 times near a corner (seed 1005 of validation/reparametrized.py): in the
+    parameters the geodesic met the side at a shallow angle, its end slid along the curve against neighbours
+    that could only move across it, and stuck: 4.5e-4, 2.2e-4 and 1.8e-4 too long at these tolerances, with
+    estimates of 2.4e-4, 2.8e-5 and 5.1e-5.  The vertices now move along the normal of the deformed
+    arclengths, in which the geodesic meets the side at a right angle."""
+    arms = (0.011409457029219779, 1.0217093457173847, 0.033816243351247055, 0.21747904509472696)
+    alpha = 2.589099418243501
+    exact = crossing_reference(alpha, *arms)
+    # the arms of seed 1005 (scaled), cut where that scene has its vertices, on its reference lengths
+    res = direct.penalty(_slowed(arms, alpha, (0.9446, 0.4962), (0.9265, 1.6177)), tol=tol)
+    err = abs(res.value - exact)
+    assert err <= tol * exact
+    assert err <= res.error_estimate
