@@ -144,8 +144,8 @@ def test_an_end_on_the_boundary_of_a_stretched_domain_slides_into_place(tol):
     """Arms whose speeds differ 14 times near a corner (seed 1005 of validation/reparametrized.py): in the
     parameters the geodesic met the side at a shallow angle, its end slid along the curve against neighbours
     that could only move across it, and stuck: 4.5e-4, 2.2e-4 and 1.8e-4 too long at these tolerances, with
-    estimates of 2.4e-4, 2.8e-5 and 5.1e-5.  The vertices now move along the normal of the deformed
-    arclengths, in which the geodesic meets the side at a right angle."""
+    estimates of 2.4e-4, 2.8e-5 and 5.1e-5.  The free vertices next to the sliding end now move along the
+    normal of the deformed arclengths, in which the geodesic meets the side at a right angle."""
     arms = (0.011409457029219779, 1.0217093457173847, 0.033816243351247055, 0.21747904509472696)
     alpha = 2.589099418243501
     exact = crossing_reference(alpha, *arms)
