@@ -1,6 +1,6 @@
 """Straight crossings in any position and parametrization, against the independent eikonal reference.
 
-Run ``python validation/reparametrized.py`` (about four minutes).  Each scene
+Run ``python validation/reparametrized.py`` (about one and a half minutes).  Each scene
 is two straight segments crossing at a random angle (0.05 to pi - 0.05
 radians), with arms of random lengths from 0.01 to 2 on each side of the
 crossing (log-uniform: crossings next to an end, and next to a corner of the
