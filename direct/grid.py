@@ -376,6 +376,18 @@ def _dedupe_min(r, c, w, k, n_grounds: int, first_point: int):
     return a.take(kept), b.take(kept), w.take(kept), np.take(k, kept, axis=0), kept
 
 
+def deformed_speeds(comp, floor: float = 0.05) -> np.ndarray:
+    """``|phi'|`` on each segment of a component, at least ``floor`` times its mean.
+
+    The deformed arclength ``sigma`` of the component grows at this rate
+    along its reference arclength (unitless: deformed length per reference
+    length).  The floor keeps ``sigma`` strictly increasing where a segment
+    collapses to a point (the default keeps a few grid cells on it).
+    """
+    speed = np.linalg.norm(comp.velocities, axis=1)
+    return np.maximum(speed, floor * max(float(speed.mean()), 1e-300))
+
+
 def _grid_coordinate(domain: Domain, metric: Metric, axis: int) -> tuple[np.ndarray, np.ndarray] | None:
     """Knots ``(local, grid)`` of the coordinate in which the grid of one axis is uniform, or None (uniform).
 
@@ -403,9 +415,7 @@ def _grid_coordinate(domain: Domain, metric: Metric, axis: int) -> tuple[np.ndar
     if np.count_nonzero(col) != 1:
         return None
     comp = domain.comps[int(np.flatnonzero(col)[0])]
-    speed = np.linalg.norm(comp.velocities, axis=1)
-    speed = np.maximum(speed, 0.05 * max(float(speed.mean()), 1e-300))  # a collapsed segment keeps some cells
-    sigma = np.concatenate([[0.0], np.cumsum(speed * np.diff(comp.params))])
+    sigma = np.concatenate([[0.0], np.cumsum(deformed_speeds(comp) * np.diff(comp.params))])
     return comp.params, sigma
 
 
@@ -531,8 +541,7 @@ def _valley_rays(domain: Domain, metric: Metric, pts: np.ndarray):
     """
     knots = []
     for comp in domain.comps:
-        speed = np.linalg.norm(comp.velocities, axis=1)
-        speed = np.maximum(speed, 1e-6 * max(float(speed.mean()), 1e-300))  # sigma strictly increasing
+        speed = deformed_speeds(comp, floor=1e-6)  # sigma strictly increasing, collapsed segments barely counted
         knots.append((comp.params, np.concatenate([[0.0], np.cumsum(speed * np.diff(comp.params))])))
     n = len(pts)
     owner = np.repeat(np.arange(n), 4)

@@ -49,7 +49,7 @@ from scipy.linalg import LinAlgError, solve_banded
 from scipy.optimize import minimize
 from scipy.sparse.linalg import spsolve
 
-from .grid import Domain
+from .grid import Domain, deformed_speeds
 from .metric import Metric, _breaks, _vertex_params, segment_lengths
 
 __all__ = ["refine", "refine_many", "coarse_geodesic", "coarse_geodesics", "RefinedPath", "GeodesicJob"]
@@ -333,27 +333,31 @@ class _Parametrization:
         return self.X0 + (self.M @ z).reshape(-1, 2)
 
 
-def _vertex_speeds(domain: Domain, metric: Metric, X: np.ndarray) -> np.ndarray | None:
-    """``(|phi'(x1)|, |phi'(x2)|)`` at each vertex, for the metrics isotropic in the deformed arclength; else None.
+def _speed_lookup(domain: Domain, metric: Metric):
+    """``at(X) -> (|phi'(x1)|, |phi'(x2)|)`` per vertex, for the metrics isotropic in the deformed arclength; else None.
 
-    Collapsed segments count at 0.05 of the mean speed, as in the grid
-    coordinate (:func:`direct.grid._grid_coordinate`).  Not for a degenerate
-    metric (``euclid``), which is not isotropic there: with these normals one
-    of the random scenes of ``validation/euclid.py`` (interval seed 10) settled
-    in a local geodesic 2.0e-3 longer, beyond its estimate.
+    Speeds as in the grid coordinate (:func:`direct.grid.deformed_speeds`),
+    tabulated once per domain.  Not for a degenerate metric (``euclid``),
+    which is not isotropic there: with the normals of :func:`_normal_modes`
+    in the deformed arclength, one of the random scenes of
+    ``validation/euclid.py`` (interval seed 10) settled in a local geodesic
+    2.0e-3 longer, beyond its estimate.
     """
     if not metric.deformed_grid or metric.degenerate:
         return None
-    out = np.empty((len(X), 2))
-    for k, comp in enumerate(domain.comps):
-        x = np.mod(X[:, k], comp.length) if comp.closed else X[:, k]
-        speed = np.linalg.norm(comp.velocities, axis=1)
-        speed = np.maximum(speed, 0.05 * max(float(speed.mean()), 1e-300))
-        out[:, k] = speed[comp.segment_index(x)]
-    return out
+    tables = [deformed_speeds(comp) for comp in domain.comps]
+
+    def at(X: np.ndarray) -> np.ndarray:
+        out = np.empty((len(X), 2))
+        for k, comp in enumerate(domain.comps):
+            x = np.mod(X[:, k], comp.length) if comp.closed else X[:, k]
+            out[:, k] = tables[k][comp.segment_index(x)]
+        return out
+
+    return at
 
 
-def _normal_modes(X: np.ndarray, modes: _Modes, closed: bool, speeds: np.ndarray | None = None) -> _Modes:
+def _normal_modes(X: np.ndarray, modes: _Modes, closed: bool, speed_at=None) -> _Modes:
     """Let each free vertex move only across the polyline, along its normal.
 
     Moving vertices along a geodesic barely changes its length (not at all
@@ -363,7 +367,7 @@ def _normal_modes(X: np.ndarray, modes: _Modes, closed: bool, speeds: np.ndarray
     route and its midpoint refinements, the family Richardson extrapolation
     assumes.
 
-    With ``speeds`` (:func:`_vertex_speeds`), on the free vertices next to
+    With ``speed_at`` (:func:`_speed_lookup`), on the free vertices next to
     an end that slides on the boundary (up to the first vertex held on a
     vertex line), the normal is that of the deformed arclengths ``sigma_k``,
     in which ``G`` is isotropic, mapped back to the parameters:
@@ -389,7 +393,7 @@ def _normal_modes(X: np.ndarray, modes: _Modes, closed: bool, speeds: np.ndarray
         tangent = np.zeros_like(X)
         tangent[1:-1] = X[2:] - X[:-2]
     across = np.column_stack([-tangent[:, 1], tangent[:, 0]])
-    if speeds is not None and not closed:
+    if speed_at is not None and not closed:
         near = np.zeros(len(X), dtype=bool)
         slide = np.flatnonzero(modes.kind == SLIDE)
         if modes.kind[0] == SLIDE:  # an end on the boundary: the free run up to the first break
@@ -398,7 +402,9 @@ def _normal_modes(X: np.ndarray, modes: _Modes, closed: bool, speeds: np.ndarray
         if modes.kind[-1] == SLIDE:
             stop = slide[slide < len(X) - 1]
             near[(stop[-1] + 1 if stop.size else 0):] = True
-        across[near, 0] *= (speeds[near, 1] / speeds[near, 0]) ** 2
+        if near.any():
+            speeds = speed_at(X[near])
+            across[near, 0] *= (speeds[:, 1] / speeds[:, 0]) ** 2
     norm = np.hypot(across[:, 0], across[:, 1])
     safe = np.where(norm > 0, norm, 1.0)
     normal = np.where((norm > 0)[:, None], across / safe[:, None], np.array([1.0, 0.0]))
@@ -1192,11 +1198,11 @@ def coarse_geodesics(domain: Domain, metric: Metric, jobs: list[GeodesicJob], n:
     state = [_resampled_with_ends(domain, r, n, j.start_ground, j.end_ground, j.closed) for r, j in zip(routes, jobs)]
     todo = list(range(len(jobs)))
     lengths = None  # from the last of the first rounds on: each curve's length before the round
+    speed_at = _speed_lookup(domain, metric)
     for r in range(rounds + more):
         if more and r == rounds - 1:
             lengths = polyline_lengths(domain, metric, [X for X, _ in state])
-        outs = _optimize_many(domain, metric, [(state[i][0], _normal_modes(*state[i], jobs[i].closed,
-                                                                          _vertex_speeds(domain, metric, state[i][0])),
+        outs = _optimize_many(domain, metric, [(state[i][0], _normal_modes(*state[i], jobs[i].closed, speed_at),
                                                 jobs[i].shift)
                                                for i in todo], scale, max_iter=20, polish=False)
         for i, (X, _) in zip(todo, outs):
@@ -1273,9 +1279,9 @@ def _settle(domain: Domain, metric: Metric, curves: list[_Curve], scale: float, 
     for c in curves:
         c.gains = []
     todo = list(curves)
+    speed_at = _speed_lookup(domain, metric)
     for _round in range(max_rounds):
-        outs = _optimize_many(domain, metric, [(c.X, _normal_modes(c.X, c.modes, c.job.closed,
-                                                                   _vertex_speeds(domain, metric, c.X)), c.job.shift)
+        outs = _optimize_many(domain, metric, [(c.X, _normal_modes(c.X, c.modes, c.job.closed, speed_at), c.job.shift)
                                                for c in todo], scale)
         for c, (X, _) in zip(todo, outs):
             X, modes = _insert_breaks(domain, *_prune_breaks(*_merge_collapsed(*_drop_folds(X, c.modes))))
