@@ -54,6 +54,13 @@ def _solve(scene, tol, **kwargs):
     return res, warned, seconds
 
 
+def status(error: float, estimate: float, warned: bool, tol: float) -> str:
+    """``"SILENT"`` (off by more than the estimate, without a warning), ``"over tol"`` or ``"ok"``; relative values."""
+    if error > estimate and not warned:
+        return "SILENT"
+    return "over tol" if error > tol else "ok"
+
+
 def main(seeds=range(100, 300)) -> list[dict]:
     rows = []
     for seed, sc in study_scenes(seeds):

@@ -32,6 +32,7 @@ from references import crossing_reference  # noqa: E402
 
 sys.path.insert(0, HERE)
 from default_tol import _solve as solve_recording_warnings  # noqa: E402
+from default_tol import status  # noqa: E402
 
 ANGLES = (0.1, 0.03, 0.01, 3e-3, 1e-3, 1e-4)
 TOLS = (1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-7)
@@ -46,13 +47,8 @@ def main() -> None:
             res, warned, seconds = solve_recording_warnings(scene, tol)
             err = abs(res.value - exact) / exact
             est = res.error_estimate / exact
-            status = "ok"
-            if err > est and not warned:
-                status = "SILENT"
-            elif err > tol:
-                status = "over tol"
             rows.append(dict(angle=alpha, tol=tol, value=res.value, reference=exact, relative_error=err,
-                             estimate=est, warned=warned, seconds=seconds, status=status))
+                             estimate=est, warned=warned, seconds=seconds, status=status(err, est, warned, tol)))
     with open(os.path.join(HERE, "grazing.csv"), "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=list(rows[0]))
         w.writeheader()

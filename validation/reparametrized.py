@@ -37,6 +37,7 @@ from references import crossing_reference  # noqa: E402
 
 sys.path.insert(0, HERE)
 from default_tol import _solve as solve_recording_warnings  # noqa: E402
+from default_tol import status  # noqa: E402
 
 TOLS = (1e-3, 1e-5)
 
@@ -74,18 +75,14 @@ def main(seeds=range(1000, 1200)) -> list[dict]:
         for tol in TOLS:
             res, warned, seconds = solve_recording_warnings(sc, tol)
             err = abs(res.value - exact)
-            status = "ok"
-            if err > res.error_estimate and not warned:
-                status = "SILENT"
-            elif err > tol * exact:
-                status = "over tol"
+            verdict = status(err / exact, res.error_estimate / exact, warned, tol)
             rows.append(dict(seed=seed, **params, tol=tol, value=res.value, reference=exact,
                              relative_error=err / exact, relative_estimate=res.error_estimate / exact,
                              over_estimate=err > res.error_estimate, warned=warned,
-                             above_upper_bound=exact > res.upper_bound * (1 + 1e-10), seconds=seconds, status=status))
-            if status != "ok" or err > res.error_estimate:
+                             above_upper_bound=exact > res.upper_bound * (1 + 1e-10), seconds=seconds, status=verdict))
+            if verdict != "ok" or err > res.error_estimate:
                 print(f"seed {seed} tol {tol:g}: error {err / exact:.2e}, estimate {res.error_estimate / exact:.2e}, "
-                      f"warned {warned}: {status}", flush=True)
+                      f"warned {warned}: {verdict}", flush=True)
     with open(os.path.join(HERE, "reparametrized.csv"), "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=list(rows[0]))
         w.writeheader()
