@@ -87,7 +87,7 @@ from threadpoolctl import ThreadpoolController
 
 from .crossings import Crossing, find_crossings
 from .errors import DegenerateMetricWarning, DirectError, ToleranceWarning
-from .geodesics import Backend, closed_curve_distances, grid_distances, torus_distances
+from .geodesics import Backend, closed_curve_bounds, closed_curve_distances, grid_distances, torus_distances
 from .grid import Domain, build_graph
 from .matching import solve as solve_assignment
 from .matching import solve_flow, solve_torus
@@ -387,7 +387,7 @@ def boundary_conditions(domain: Domain) -> dict[str, Any]:
 
 
 def _settle(grid_costs: dict, solve, refine_keys, bias: float, finish=None, cache: dict | None = None,
-            finished: set | None = None):
+            finished: set | None = None, complete=None):
     """Solve, refine the chosen curves, re-solve with refined lengths until the choice is refined.
 
     ``refine_keys(keys)`` refines the curves of several entries at once (one
@@ -405,6 +405,14 @@ def _settle(grid_costs: dict, solve, refine_keys, bias: float, finish=None, cach
     the entries the next solves would ask for are refined in the same batch
     (:func:`_foreseen`).  ``cache`` and ``finished`` may bring entries
     refined, and finished, already.
+
+    ``grid_costs`` may hold lower bounds for entries not searched yet (the
+    closed curves of a torus, :func:`direct.geodesics.closed_curve_bounds`).
+    Before entries are refined, ``complete(keys)`` replaces the bounds among
+    them by grid lengths (in ``grid_costs``, for all such entries at once) and
+    says whether it did; the round is then solved again.  A bound is at most
+    the grid length, so as long as no solve picks a bounded entry, every
+    choice is the one the grid lengths would give.
     """
     cache = {} if cache is None else dict(cache)
     finished = set() if finished is None else set(finished)
@@ -418,6 +426,8 @@ def _settle(grid_costs: dict, solve, refine_keys, bias: float, finish=None, cach
         if missing:
             if cache:
                 missing = _foreseen(missing, costs, cache, solve)
+            if complete is not None and complete(missing):
+                continue
             cache.update(zip(missing, refine_keys(missing)))
             continue
         todo = [k for k, _ in chosen if k not in finished] if finish is not None else []
@@ -524,9 +534,18 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
         grid_costs = {
             (i, j, c): float(T[c][neg[j], pos[i]]) for c in T for i in range(len(pos)) for j in range(len(neg))
         }
-        loops = closed_curve_distances(graph, most=_CLOSED_STARTS)
-        for c, found in loops.items():
-            grid_costs[("closed", c)] = found[0][0]
+        # closed curves enter at lower bounds of their grid lengths; the searches for them (most of the time on
+        # a torus: 2.8 of 3.5 s on two overlapping 32-gons) run only once the program picks one (see _settle)
+        grid_costs.update({("closed", c): b for c, b in closed_curve_bounds(graph).items()})
+        loops: dict = {}
+
+        def complete(keys):
+            if loops or not any(k[0] == "closed" for k in keys):
+                return False
+            loops.update(closed_curve_distances(graph, most=_CLOSED_STARTS))
+            for c, found in loops.items():
+                grid_costs[("closed", c)] = found[0][0]
+            return True
 
         def solve(costs):
             paths = {k: v for k, v in costs.items() if k[0] != "closed"}
@@ -689,15 +708,20 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
         def polyline(key):
             return route(*key)
 
+        def complete(keys):  # every entry is a grid length already
+            return False
+
         def ends(key):
             u, v = key
             return (("ground", u) if u < ng else u - ng), (("ground", v) if v < ng else v - ng)
 
     grid_value, grid_chosen = solve(grid_costs)
+    if complete([k for k, _ in grid_chosen]):
+        grid_value, grid_chosen = solve(grid_costs)
     atol = 0.1 * tol * grid_value / max(1, len(domain.points))
     loose: list = []
     if do_refine:
-        value, chosen, cache = _settle(grid_costs, solve, refine_keys, bias, finish)
+        value, chosen, cache = _settle(grid_costs, solve, refine_keys, bias, finish, complete=complete)
         # the absolute tolerance (a curve much shorter than the others needs no relative accuracy of its own) came
         # from the grid's value, which overestimates J many times over where the grid cannot follow a narrow valley
         # (a hairpin of the deformed curve: 33 times at 128 cells on the built-in scene hairpin; validation/
@@ -713,7 +737,7 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
             stale = set(loose)
             value, chosen, cache = _settle(grid_costs, solve, refine_keys, bias, finish,
                                            cache={k: v for k, v in cache.items() if k not in stale},
-                                           finished={k for k, _ in chosen if k not in stale})
+                                           finished={k for k, _ in chosen if k not in stale}, complete=complete)
     else:
         value, chosen, cache = grid_value, grid_chosen, {}
     curves = []

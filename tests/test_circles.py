@@ -356,3 +356,115 @@ def test_hairpin_short_curves_are_refined_to_the_refined_values_tolerance():
     assert res.error_estimate <= 1e-3 * res.value
     assert abs(res.value - ref.value) <= res.error_estimate
     assert abs(res.value - ref.value) <= ref.error_estimate + 1e-3 * ref.value
+
+
+def _two_polygons(n: int, shift: float, wobble: float = 0.0, seed: int = 0) -> direct.Scene:
+    """Two ``n``-gons of radius 1 pushed together (centres ``shift`` apart), the second one wobbling."""
+    rng = np.random.default_rng(seed)
+    t = 2 * np.pi * np.arange(n) / n
+    unit = np.column_stack([np.cos(t), np.sin(t)])
+    k, phase = rng.integers(2, 5), rng.uniform(0, 2 * np.pi)
+    bumpy = unit * (1 + wobble * np.cos(k * t + phase))[:, None]
+    a = direct.Component(unit, unit, closed=True, name="a")
+    b = direct.Component(unit + [5, 0], bumpy + [shift, 0.1], closed=True, name="b")
+    return direct.Scene((a, b))
+
+
+def _torus_graph(scene, resolution=48):
+    (dom,) = [d for d in domains(scene, direct.find_crossings(scene)) if d.kind == "torus"]
+    return build_graph(dom, get_metric("G"), resolution, 16)
+
+
+@pytest.mark.parametrize("scene", [direct.scenes.get("nested"), _two_polygons(24, 1.0), _two_polygons(17, 0.3, 0.2, 1),
+                                   _two_polygons(30, 1.6, 0.3, 2)], ids=["nested", "apart", "deep", "wobbly"])
+def test_closed_curve_bounds_are_below_every_closed_grid_curve(scene):
+    """``closed_curve_bounds`` (one pass over the edges) never exceeds the shortest closed grid curve of its
+    class, found by the searches of ``closed_curve_distances`` on the cover."""
+    from direct.geodesics import closed_curve_bounds, closed_curve_distances
+
+    graph = _torus_graph(scene)
+    bounds = closed_curve_bounds(graph)
+    found = closed_curve_distances(graph)
+    assert set(bounds) == set(found)
+    for c, curves in found.items():
+        assert 0 < bounds[c] <= curves[0][0], c
+    # not vacuous: around the circles of two polygons pushed together, within a factor 2 of the grid curve
+    if len(scene.components[0].reference) == 24:
+        assert bounds[(1, 0)] > 0.5 * found[(1, 0)][0][0]
+
+
+def test_cover_matrix_is_the_matrix_of_the_cover_edges():
+    """The 3 x 3 cover of a torus graph, stacked block by block, against the direct construction from its edges."""
+    import scipy.sparse as sp
+
+    from direct.geodesics import _COVER, _cover_index, _cover_matrix
+
+    graph = _torus_graph(_two_polygons(17, 0.3, 0.2, 1), resolution=24)
+    N = graph.n_nodes
+    rows, cols, data = [], [], []
+    for c in _COVER:
+        for r, q, dk in ((graph.rows, graph.cols, graph.winds), (graph.cols, graph.rows, -graph.winds)):
+            to = np.array(c)[None, :] + dk
+            ok = (np.abs(to) <= 1).all(axis=1)
+            rows.append(r[ok] + N * _COVER.index(c))
+            cols.append(q[ok] + N * _cover_index(to[ok]))
+            data.append(graph.weights[ok])
+    want = sp.csr_matrix((np.concatenate(data), (np.concatenate(rows), np.concatenate(cols))), shape=(9 * N, 9 * N))
+    got = _cover_matrix(graph)
+    assert got.shape == want.shape
+    np.testing.assert_array_equal(got.indptr, want.indptr)
+    np.testing.assert_array_equal(got.indices, want.indices)
+    np.testing.assert_array_equal(got.data, want.data)
+
+
+@pytest.mark.parametrize("scene,resolution,searches", [(_two_polygons(24, 1.0), 64, 0), (_two_polygons(16, 0.3), 64, 1),
+                                                       (direct.scenes.get("nested"), 64, 1)],
+                         ids=["apart", "deep", "nested"])
+def test_closed_curves_are_searched_only_when_the_program_picks_one(monkeypatch, scene, resolution, searches):
+    """On a torus the closed curves enter program (34) at lower bounds, and are searched for only once a solve picks
+    one: the result is the one the searched lengths give from the start (bit for bit). Two polygons pushed
+    apart by their crossings (no closed curve can compete) never search; pushed deep into each other, a closed
+    curve competes at its bound, is searched, and loses; ``nested`` needs one."""
+    import sys
+
+    P = sys.modules["direct.penalty"]
+    searched = []
+    inner = P.closed_curve_distances
+
+    def spy(graph, *args, **kwargs):
+        searched.append(graph)
+        return inner(graph, *args, **kwargs)
+
+    monkeypatch.setattr(P, "closed_curve_distances", spy)
+    lazy = direct.penalty(scene, resolution=resolution)
+    assert len(searched) == searches
+    # the bounds replaced by the grid lengths themselves: every closed curve searched up front
+    monkeypatch.setattr(P, "closed_curve_bounds", lambda graph: {c: f[0][0] for c, f in inner(graph).items()})
+    eager = direct.penalty(scene, resolution=resolution)
+    assert lazy.value == eager.value and lazy.error_estimate == eager.error_estimate
+    assert [(p.start, p.end, p.closed, p.length) for p in lazy.pairs] == [
+        (p.start, p.end, p.closed, p.length) for p in eager.pairs]
+    assert any(p.closed for p in lazy.pairs) == (scene.name == "nested")
+
+
+def test_newton_steps_on_a_closed_curve_stay_within_a_period(monkeypatch):
+    """``nested`` with the degenerate ``euclid`` metric at 64 cells: where the length is nearly flat, a Newton step
+    on a closed curve moved vertices by 2e6 periods, and measuring the trial polyline (split on every vertex line
+    it crosses) took 24 GB. The line search now starts within one period; any trial polyline reaching 4 periods
+    away fails this test before it can take the memory."""
+    import sys
+
+    R = sys.modules["direct.refinement"]
+    scene = direct.scenes.get("nested")
+    period = max(c.length for c in scene.components)
+    inner = R.segment_lengths
+
+    def bounded(metric, comps, P, Q, *args, **kwargs):
+        assert np.abs(np.asarray(P)).max() < 4 * period and np.abs(np.asarray(Q)).max() < 4 * period
+        return inner(metric, comps, P, Q, *args, **kwargs)
+
+    monkeypatch.setattr(R, "segment_lengths", bounded)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", direct.ToleranceWarning)
+        res = direct.penalty(scene, "euclid", resolution=64)
+    assert res.value > 0 and all(p.closed for p in res.pairs)
