@@ -288,7 +288,8 @@ def _cover_polyline(graph: GridGraph, nodes) -> np.ndarray:
     return graph.domain.to_param(np.array(st))
 
 
-def closed_curve_distances(graph: GridGraph, max_bases: int = 24, most: int = 1, margin: float = 0.01) -> dict:
+def closed_curve_distances(graph: GridGraph, max_bases: int = 24, most: int = 1, margin: float = 0.01,
+                           seams: tuple[int, ...] = (0, 1)) -> dict:
     """Shortest closed grid curves of a torus in the primitive homotopy classes.
 
     Parameters
@@ -308,12 +309,15 @@ def closed_curve_distances(graph: GridGraph, max_bases: int = 24, most: int = 1,
         refinement keeps the best of several (:func:`direct.penalty.penalty`).
     margin : float, default 0.01
         See ``most``.
+    seams : tuple of int, default (0, 1)
+        The searches to run: from the seam ``s = 0`` (0: the classes with
+        ``a != 0``) and from the seam ``v = 0`` (1: the classes ``(0, +-1)``).
 
     Returns
     -------
     dict
         ``{(a, b): [(length, polyline), ...]}`` for the eight classes with
-        ``|a|, |b| <= 1``, at most ``most`` curves each, the shortest first;
+        ``|a|, |b| <= 1`` (those of ``seams``), at most ``most`` curves each, the shortest first;
         each polyline (parameters) ends at its start shifted by ``(a S, b V)``
         in local coordinates.  Opposite classes are the same curves run backwards.
     """
@@ -323,6 +327,8 @@ def closed_curve_distances(graph: GridGraph, max_bases: int = 24, most: int = 1,
     grid = graph.coords
     out = {}
     for axis, classes in ((0, [(1, 0), (1, 1), (1, -1)]), (1, [(0, 1)])):
+        if axis not in seams:
+            continue
         on_seam = np.flatnonzero(np.isfinite(grid[:, 0]) & np.isclose(grid[:, axis], 0.0))
         on_seam = on_seam[np.unique(np.linspace(0, len(on_seam) - 1, min(max_bases, len(on_seam))).astype(int))]
         src = on_seam + N * centre

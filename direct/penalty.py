@@ -535,14 +535,16 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
             (i, j, c): float(T[c][neg[j], pos[i]]) for c in T for i in range(len(pos)) for j in range(len(neg))
         }
         # closed curves enter at lower bounds of their grid lengths; the searches for them (most of the time on
-        # a torus: 2.8 of 3.5 s on two overlapping 32-gons) run only once the program picks one (see _settle)
+        # a torus: 2.8 of 3.5 s on two overlapping 32-gons) run only once the program picks one (see _settle),
+        # from the seam that curve crosses (s = 0 for the classes (+-1, b), v = 0 for (0, +-1))
         grid_costs.update({("closed", c): b for c, b in closed_curve_bounds(graph).items()})
         loops: dict = {}
 
         def complete(keys):
-            if loops or not any(k[0] == "closed" for k in keys):
+            seams = {0 if k[1][0] else 1 for k in keys if k[0] == "closed" and k[1] not in loops}
+            if not seams:
                 return False
-            loops.update(closed_curve_distances(graph, most=_CLOSED_STARTS))
+            loops.update(closed_curve_distances(graph, most=_CLOSED_STARTS, seams=tuple(sorted(seams))))
             for c, found in loops.items():
                 grid_costs[("closed", c)] = found[0][0]
             return True
