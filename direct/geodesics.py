@@ -400,5 +400,6 @@ def closed_curve_bounds(graph: GridGraph) -> dict:
         widths = np.diff(np.append(lines, lines[0] + periods[axis]))
         # a safety factor against the rounding of the widths and extents (relative 1e-16 each)
         per_axis.append(float(least @ widths) * (1.0 - 1e-9))
-    return {(a, b): max(per_axis[axis] for axis, k in enumerate((a, b)) if k)  # |a|, |b| <= 1
-            for a in (-1, 0, 1) for b in (-1, 0, 1) if (a, b) != (0, 0)}
+    # in the order of closed_curve_distances: the program's variables, and so how it breaks exact ties, stay the same
+    classes = [(1, 0), (-1, 0), (1, 1), (-1, -1), (1, -1), (-1, 1), (0, 1), (0, -1)]
+    return {(a, b): max(per_axis[axis] for axis, k in enumerate((a, b)) if k) for a, b in classes}  # |a|, |b| <= 1

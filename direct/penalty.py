@@ -718,7 +718,7 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
             return (("ground", u) if u < ng else u - ng), (("ground", v) if v < ng else v - ng)
 
     grid_value, grid_chosen = solve(grid_costs)
-    if complete([k for k, _ in grid_chosen]):
+    while complete([k for k, _ in grid_chosen]):  # a closed curve picked at its bound: searched, solved again
         grid_value, grid_chosen = solve(grid_costs)
     atol = 0.1 * tol * grid_value / max(1, len(domain.points))
     loose: list = []

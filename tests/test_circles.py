@@ -418,15 +418,16 @@ def test_cover_matrix_is_the_matrix_of_the_cover_edges():
 
 
 @pytest.mark.parametrize("scene,resolution,searched_any", [(_two_polygons(24, 1.0), 64, False),
-                                                           (_two_polygons(16, 0.3), 64, True),
+                                                           (_two_polygons(16, 0.3), 64, None),
                                                            (direct.scenes.get("nested"), 64, True)],
                          ids=["apart", "deep", "nested"])
 def test_closed_curves_are_searched_only_when_the_program_picks_one(monkeypatch, scene, resolution, searched_any):
     """On a torus the closed curves enter program (34) at lower bounds, and are searched for (from the seam they
     cross, each seam once at most) only once a solve picks one: the result is the one the searched lengths give
-    from the start (bit for bit). Two polygons pushed apart by their crossings (no closed curve can compete)
-    never search; pushed deep into each other, a closed curve competes at its bound, is searched, and loses;
-    ``nested`` needs one."""
+    from the start (bit for bit), the grid's own value too, and with ``refine=False`` (the grid's family: a
+    closed curve picked at its bound used to reach the output unsearched). Two polygons pushed apart by their
+    crossings (no closed curve can compete) never search; pushed deep into each other, closed curves compete
+    at their bounds (searched or not, they lose); ``nested`` needs one."""
     import sys
 
     P = sys.modules["direct.penalty"]
@@ -439,21 +440,27 @@ def test_closed_curves_are_searched_only_when_the_program_picks_one(monkeypatch,
 
     monkeypatch.setattr(P, "closed_curve_distances", spy)
     lazy = direct.penalty(scene, resolution=resolution)
-    assert bool(searched) == searched_any and len(set(searched)) == len(searched)
+    assert searched_any is None or bool(searched) == searched_any
+    assert len(set(searched)) == len(searched)  # each seam at most once
+    lazy_grid = direct.penalty(scene, resolution=resolution, refine=False)
     # the bounds replaced by the grid lengths themselves: every closed curve searched up front
     monkeypatch.setattr(P, "closed_curve_bounds", lambda graph: {c: f[0][0] for c, f in inner(graph).items()})
     eager = direct.penalty(scene, resolution=resolution)
-    assert lazy.value == eager.value and lazy.error_estimate == eager.error_estimate
-    assert [(p.start, p.end, p.closed, p.length) for p in lazy.pairs] == [
-        (p.start, p.end, p.closed, p.length) for p in eager.pairs]
+    eager_grid = direct.penalty(scene, resolution=resolution, refine=False)
+    for a, b in ((lazy, eager), (lazy_grid, eager_grid)):
+        # bit for bit (the grid's family has no estimate: NaN on both sides)
+        np.testing.assert_array_equal([a.value, a.grid_value, a.error_estimate],
+                                      [b.value, b.grid_value, b.error_estimate])
+        assert [(p.start, p.end, p.closed, p.length) for p in a.pairs] == [
+            (p.start, p.end, p.closed, p.length) for p in b.pairs]
     assert any(p.closed for p in lazy.pairs) == (scene.name == "nested")
 
 
 def test_newton_steps_on_a_closed_curve_stay_within_a_period(monkeypatch):
     """``nested`` with the degenerate ``euclid`` metric at 64 cells: where the length is nearly flat, a Newton step
     on a closed curve moved vertices by 2e6 periods, and measuring the trial polyline (split on every vertex line
-    it crosses) took 24 GB. The line search now starts within one period; any trial polyline reaching 4 periods
-    away fails this test before it can take the memory."""
+    it crosses) took 24 GB. The line search now starts within one period; any trial polyline reaching 12 periods
+    away (beyond the 10 that the L-BFGS-B polish's bounds allow) fails this test before it can take the memory."""
     import sys
 
     R = sys.modules["direct.refinement"]
@@ -462,7 +469,7 @@ def test_newton_steps_on_a_closed_curve_stay_within_a_period(monkeypatch):
     inner = R.segment_lengths
 
     def bounded(metric, comps, P, Q, *args, **kwargs):
-        assert np.abs(np.asarray(P)).max() < 4 * period and np.abs(np.asarray(Q)).max() < 4 * period
+        assert np.abs(np.asarray(P)).max() < 12 * period and np.abs(np.asarray(Q)).max() < 12 * period
         return inner(metric, comps, P, Q, *args, **kwargs)
 
     monkeypatch.setattr(R, "segment_lengths", bounded)
