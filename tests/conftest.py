@@ -37,6 +37,23 @@ def random_crossing_scene(seed: int, n_comp: int = 2, n_vert: int = 5, min_cross
     raise RuntimeError("no random scene with the requested number of crossings")
 
 
+def polygon_pair(n: int, shift: float, wobble: float = 0.0, seed: int = 0) -> direct.Scene:
+    """Two ``n``-gons of radius 1 pushed together (a torus of M x M): centres ``shift`` apart, the second wobbling.
+
+    The second polygon's radius is ``1 + wobble cos(k t + phase)`` with ``k`` in 2..4 and the phase drawn from
+    ``seed``; ``shift`` below 2 makes them cross (used by ``tests/test_circles.py`` and
+    ``validation/closed_searches.py``).
+    """
+    rng = np.random.default_rng(seed)
+    t = 2 * np.pi * np.arange(n) / n
+    unit = np.column_stack([np.cos(t), np.sin(t)])
+    k, phase = rng.integers(2, 5), rng.uniform(0, 2 * np.pi)
+    bumpy = unit * (1 + wobble * np.cos(k * t + phase))[:, None]
+    a = direct.Component(unit, unit, closed=True, name="a")
+    b = direct.Component(unit + [5, 0], bumpy + [shift, 0.1], closed=True, name="b")
+    return direct.Scene((a, b), name=f"{n}-gons {shift} apart" + (f", wobble {wobble}" if wobble else ""))
+
+
 def study_scenes(seeds):
     """``(seed, scene)`` for the random interval scenes of the validation studies (``validation/default_tol.py``).
 

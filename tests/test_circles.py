@@ -7,7 +7,7 @@ import warnings
 
 import numpy as np
 import pytest
-from conftest import RTOL, rigid
+from conftest import RTOL, polygon_pair, rigid
 
 import direct
 from direct.geodesics import grid_distances
@@ -358,25 +358,13 @@ def test_hairpin_short_curves_are_refined_to_the_refined_values_tolerance():
     assert abs(res.value - ref.value) <= ref.error_estimate + 1e-3 * ref.value
 
 
-def _two_polygons(n: int, shift: float, wobble: float = 0.0, seed: int = 0) -> direct.Scene:
-    """Two ``n``-gons of radius 1 pushed together (centres ``shift`` apart), the second one wobbling."""
-    rng = np.random.default_rng(seed)
-    t = 2 * np.pi * np.arange(n) / n
-    unit = np.column_stack([np.cos(t), np.sin(t)])
-    k, phase = rng.integers(2, 5), rng.uniform(0, 2 * np.pi)
-    bumpy = unit * (1 + wobble * np.cos(k * t + phase))[:, None]
-    a = direct.Component(unit, unit, closed=True, name="a")
-    b = direct.Component(unit + [5, 0], bumpy + [shift, 0.1], closed=True, name="b")
-    return direct.Scene((a, b))
-
-
 def _torus_graph(scene, resolution=48):
     (dom,) = [d for d in domains(scene, direct.find_crossings(scene)) if d.kind == "torus"]
     return build_graph(dom, get_metric("G"), resolution, 16)
 
 
-@pytest.mark.parametrize("scene", [direct.scenes.get("nested"), _two_polygons(24, 1.0), _two_polygons(17, 0.3, 0.2, 1),
-                                   _two_polygons(30, 1.6, 0.3, 2)], ids=["nested", "apart", "deep", "wobbly"])
+@pytest.mark.parametrize("scene", [direct.scenes.get("nested"), polygon_pair(24, 1.0), polygon_pair(17, 0.3, 0.2, 1),
+                                   polygon_pair(30, 1.6, 0.3, 2)], ids=["nested", "apart", "deep", "wobbly"])
 def test_closed_curve_bounds_are_below_every_closed_grid_curve(scene):
     """``closed_curve_bounds`` (one pass over the edges) never exceeds the shortest closed grid curve of its
     class, found by the searches of ``closed_curve_distances`` on the cover."""
@@ -399,7 +387,7 @@ def test_cover_matrix_is_the_matrix_of_the_cover_edges():
 
     from direct.geodesics import _COVER, _cover_index, _cover_matrix
 
-    graph = _torus_graph(_two_polygons(17, 0.3, 0.2, 1), resolution=24)
+    graph = _torus_graph(polygon_pair(17, 0.3, 0.2, 1), resolution=24)
     N = graph.n_nodes
     rows, cols, data = [], [], []
     for c in _COVER:
@@ -417,8 +405,8 @@ def test_cover_matrix_is_the_matrix_of_the_cover_edges():
     np.testing.assert_array_equal(got.data, want.data)
 
 
-@pytest.mark.parametrize("scene,resolution,searched_any", [(_two_polygons(24, 1.0), 64, False),
-                                                           (_two_polygons(16, 0.3), 64, None),
+@pytest.mark.parametrize("scene,resolution,searched_any", [(polygon_pair(24, 1.0), 64, False),
+                                                           (polygon_pair(16, 0.3), 64, None),
                                                            (direct.scenes.get("nested"), 64, True)],
                          ids=["apart", "deep", "nested"])
 def test_closed_curves_are_searched_only_when_the_program_picks_one(monkeypatch, scene, resolution, searched_any):

@@ -39,18 +39,8 @@ import direct
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 P = sys.modules["direct.penalty"]
-
-
-def polygons(n: int, shift: float, wobble: float, seed: int = 0) -> direct.Scene:
-    """Two ``n``-gons of radius 1, centres ``shift`` apart, the second one wobbling by ``wobble``."""
-    rng = np.random.default_rng(seed)
-    t = 2 * np.pi * np.arange(n) / n
-    unit = np.column_stack([np.cos(t), np.sin(t)])
-    k, phase = rng.integers(2, 5), rng.uniform(0, 2 * np.pi)
-    bumpy = unit * (1 + wobble * np.cos(k * t + phase))[:, None]
-    a = direct.Component(unit, unit, closed=True, name="a")
-    b = direct.Component(unit + [5, 0], bumpy + [shift, 0.1], closed=True, name="b")
-    return direct.Scene((a, b), name=f"{n}-gons {shift} apart" + (f", wobble {wobble}" if wobble else ""))
+sys.path.insert(0, os.path.join(HERE, "..", "tests"))
+from conftest import polygon_pair  # noqa: E402
 
 
 def random_pair(seed: int) -> direct.Scene:
@@ -75,8 +65,8 @@ def random_pair(seed: int) -> direct.Scene:
 def scenes():
     for n in (16, 32, 64, 128):
         for shift in (1.6, 1.0, 0.6, 0.3):
-            yield polygons(n, shift, 0.0)
-            yield polygons(n, shift, 0.2, seed=n)
+            yield polygon_pair(n, shift)
+            yield polygon_pair(n, shift, 0.2, seed=n)
     for seed in range(12):
         yield random_pair(seed)
     yield direct.scenes.get("nested")
