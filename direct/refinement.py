@@ -1391,7 +1391,14 @@ def refine_many(
                 if len(h) >= 3:
                     # a level that barely moves after one that moved a lot has stalled (a kink it cannot cross),
                     # not converged: with an error ~ n^-2 each change is about a quarter of the one before
-                    estimate = max(estimate, abs(h[-3] - h[-2]) / 4.0)
+                    prev = abs(h[-3] - h[-2])
+                    estimate = max(estimate, prev / 4.0)
+                    if 0.5 * prev < abs(diff) <= prev:
+                        # changes shrinking slower than n^-2 (a valley narrower than the segments: hairpin with
+                        # g, ratio 0.74, was 1.1e-3 off at tol=1e-3 with an estimate of 6.2e-4): their
+                        # geometric tail, r capped as for the rounds (_remaining_gain)
+                        r = min(abs(diff) / prev, _MAX_RATIO)
+                        estimate = max(estimate, abs(diff) * r / (1.0 - r))
                 # what further rounds could still gain: the optimization of this level may not have finished
                 estimate += _remaining_gain(c.gains)
                 # three levels at least: the change between the first two is often not yet in the asymptotic
