@@ -1349,8 +1349,10 @@ def refine_many(
     list of RefinedPath
         One per job, in order.  ``length`` is Richardson-extrapolated;
         ``error_estimate`` is the whole last change between levels, at least
-        a quarter of the change before it, plus what further rounds of the
-        last level could still gain.
+        a quarter of the change before it, at least the geometric tail
+        ``c r / (1 - r)`` of the changes when the last one ``c`` is more
+        than half the one before (ratio ``r``, capped at ``_MAX_RATIO``),
+        plus what further rounds of the last level could still gain.
     """
     scale = float(max(domain.lengths))
     jobs = list(jobs)
