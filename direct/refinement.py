@@ -1395,12 +1395,12 @@ def refine_many(
                     # not converged: with an error ~ n^-2 each change is about a quarter of the one before
                     prev = abs(h[-3] - h[-2])
                     estimate = max(estimate, prev / 4.0)
-                    if 0.5 * prev < abs(diff) <= prev:
+                    if abs(diff) <= prev:
                         # changes shrinking slower than n^-2 (a valley narrower than the segments: hairpin with
                         # g, ratio 0.74, was 1.1e-3 off at tol=1e-3 with an estimate of 6.2e-4): their
-                        # geometric tail, r capped as for the rounds (_remaining_gain)
-                        r = min(abs(diff) / prev, _MAX_RATIO)
-                        estimate = max(estimate, abs(diff) * r / (1.0 - r))
+                        # geometric tail, the same as for the rounds' gains (above the last change only when
+                        # it is more than half the one before)
+                        estimate = max(estimate, _remaining_gain([prev, abs(diff)]))
                 # what further rounds could still gain: the optimization of this level may not have finished
                 estimate += _remaining_gain(c.gains)
                 # three levels at least: the change between the first two is often not yet in the asymptotic
