@@ -209,6 +209,10 @@ def grid_distances(
 
 
 _COVER = [(a, b) for a in (-1, 0, 1) for b in (-1, 0, 1)]
+#: the primitive classes searched from each seam (s = 0: a != 0; v = 0: (0, 1)); their opposites come reversed
+_SEAM_CLASSES = ((0, ((1, 0), (1, 1), (1, -1))), (1, ((0, 1),)))
+#: the closed-curve classes in the order closed_curve_distances returns them (the program's variables follow it)
+_CLOSED_CLASSES = [k for _, classes in _SEAM_CLASSES for a, b in classes for k in ((a, b), (-a, -b))]
 
 
 def _cover_index(k: np.ndarray) -> np.ndarray:
@@ -232,22 +236,13 @@ def _cover_matrix(graph: GridGraph) -> sp.csr_matrix:
     rows = np.concatenate([graph.rows, graph.cols])
     cols = np.concatenate([graph.cols, graph.rows])
     weights = np.concatenate([graph.weights, graph.weights])
-    winds = np.concatenate([graph.winds, -graph.winds])
-    by_wind = _cover_index(winds)  # a wind is in {-1, 0, 1}^2 too
-    blocks = {}
+    by_wind = _cover_index(np.concatenate([graph.winds, -graph.winds]))  # a wind is in {-1, 0, 1}^2 too
+    blocks = {}  # wind -> the N x N matrix of the edges with that wind
     for w in np.unique(by_wind):
         on = by_wind == w
-        blocks[int(w)] = sp.csr_matrix((weights[on], (rows[on], cols[on])), shape=(N, N))
+        blocks[_COVER[w]] = sp.csr_matrix((weights[on], (rows[on], cols[on])), shape=(N, N))
     empty = sp.csr_matrix((N, N))
-    grid = []
-    for c in _COVER:
-        row = []
-        for c2 in _COVER:
-            dk = (c2[0] - c[0], c2[1] - c[1])
-            fits = abs(dk[0]) <= 1 and abs(dk[1]) <= 1
-            row.append(blocks.get(int(_cover_index(np.array(dk))), empty) if fits else empty)
-        grid.append(row)
-    M = sp.bmat(grid, format="csr")
+    M = sp.bmat([[blocks.get((c2[0] - c[0], c2[1] - c[1]), empty) for c2 in _COVER] for c in _COVER], format="csr")
     graph._cover = M
     return M
 
@@ -326,7 +321,7 @@ def closed_curve_distances(graph: GridGraph, max_bases: int = 24, most: int = 1,
     centre = _COVER.index((0, 0))
     grid = graph.coords
     out = {}
-    for axis, classes in ((0, [(1, 0), (1, 1), (1, -1)]), (1, [(0, 1)])):
+    for axis, classes in _SEAM_CLASSES:
         if axis not in seams:
             continue
         on_seam = np.flatnonzero(np.isfinite(grid[:, 0]) & np.isclose(grid[:, axis], 0.0))
@@ -401,5 +396,4 @@ def closed_curve_bounds(graph: GridGraph) -> dict:
         # a safety factor against the rounding of the widths and extents (relative 1e-16 each)
         per_axis.append(float(least @ widths) * (1.0 - 1e-9))
     # in the order of closed_curve_distances: the program's variables, and so how it breaks exact ties, stay the same
-    classes = [(1, 0), (-1, 0), (1, 1), (-1, -1), (1, -1), (-1, 1), (0, 1), (0, -1)]
-    return {(a, b): max(per_axis[axis] for axis, k in enumerate((a, b)) if k) for a, b in classes}  # |a|, |b| <= 1
+    return {(a, b): max(per_axis[axis] for axis, k in enumerate((a, b)) if k) for a, b in _CLOSED_CLASSES}
