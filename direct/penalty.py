@@ -116,6 +116,10 @@ _GRAZING = 0.1
 #: worst relative overestimate of grid distances by stencil (shared/NUMERICS.md), plus a margin for coarse grids
 _STENCIL_BIAS = {8: 0.0824, 16: 0.0275, 32: 0.0131}
 
+#: in _grid_lower_bounds, a refined entry's grid overestimate counts as a ratio for the entries whose grid length is
+#: at most this many times its own, and as an absolute excess for the longer ones
+_LENGTH_CLASS = 10.0
+
 #: the route check's searches on the second grid stop at this factor times the curve's length on the first grid
 _ROUTE_CHECK_REACH = 2.0
 #: the full second pass is the default from this tolerance down; above it the route check: on the 175 random scenes
@@ -397,10 +401,11 @@ def _settle(grid_costs: dict, solve, refine_keys, bias: float, finish=None, cach
     before, so the choice stays optimal) and the program is solved again
     until the choice is finished.
 
-    Entries not refined yet enter as optimistic lower estimates (grid length /
-    ``bias``, or divided by the largest overestimate the grid showed on the
-    entries refined so far, with a margin, when that is larger: coarse grids
-    overestimate more than the stencil's bias), so a choice made of refined
+    Entries not refined yet enter as optimistic lower estimates: the grid
+    length over ``bias``, or over the overestimate the grid showed on the
+    entries refined so far, with a margin, when that is larger (coarse grids
+    overestimate more than the stencil's bias), a short curve's counted partly
+    as an amount (:func:`_grid_lower_bounds`); so a choice made of refined
     entries cannot be beaten by an unrefined one.  From the second round on,
     the entries the next solves would ask for are refined in the same batch
     (:func:`_foreseen`).  ``cache`` and ``finished`` may bring entries
@@ -418,9 +423,11 @@ def _settle(grid_costs: dict, solve, refine_keys, bias: float, finish=None, cach
     finished = set() if finished is None else set(finished)
     for _ in range(2 * len(grid_costs) + 2):
         # the grid's overestimate seen on the refined entries, with a margin, bounds the others' below
-        seen = [grid_costs[k] / rp.length for k, rp in cache.items() if rp.length > 0 and np.isfinite(grid_costs[k])]
-        b = max([bias] + [1.02 * r for r in seen])
-        costs = {k: (cache[k].length if k in cache else v / b) for k, v in grid_costs.items()}
+        todo = [k for k in grid_costs if k not in cache]
+        lower = dict(zip(todo, _grid_lower_bounds(np.array([grid_costs[k] for k in todo]),
+                                                  [(grid_costs[k], rp.length) for k, rp in cache.items()],
+                                                  bias).tolist()))
+        costs = {k: (cache[k].length if k in cache else lower[k]) for k in grid_costs}
         value, chosen = solve(costs)
         missing = [k for k, _ in chosen if k not in cache]
         if missing:
@@ -436,6 +443,70 @@ def _settle(grid_costs: dict, solve, refine_keys, bias: float, finish=None, cach
         cache.update(finish(todo, cache))
         finished.update(todo)
     raise DirectError("the choice of refined geodesics did not settle")  # pragma: no cover
+
+
+def _grid_lower_bounds(grid: np.ndarray, refined: list, bias: float) -> np.ndarray:
+    """Optimistic lengths of entries not refined yet, from their grid lengths and the refined entries' (see _settle).
+
+    Parameters
+    ----------
+    grid : (m,) ndarray of float
+        Grid lengths ``G`` of the entries to bound (``inf`` for none).
+    refined : list of (float, float)
+        ``(G_k, L_k)``: grid and refined length of each refined entry.
+    bias : float
+        The stencil's worst overestimate factor, with a margin (``1 + _STENCIL_BIAS + 0.05``).
+
+    Returns
+    -------
+    (m,) ndarray of float
+        ``max(G - A, 0) / b``, from the ratios ``r_k = G_k / L_k`` of the
+        refined entries.  Those at least a ``_LENGTH_CLASS``-th as long as the
+        entry (grid lengths) count whole: ``b`` is at least 1.02 times their
+        largest ratio.  Those shorter count up to ``r_cap = 2 bias - 1``
+        (1.155 with 16 neighbours) in ``b``, and the rest of their excess,
+        ``G_k - r_cap L_k``, as an amount: ``A`` is 1.02 times the largest.
+        ``b`` is never below ``bias``.  Every refined entry bounded this way,
+        at its own grid length, gets at most its refined length over 1.02.
+
+    Notes
+    -----
+    The grid overestimates a curve in two ways.  Along the curve its stencil,
+    the cells of a coarse grid and the valleys of ``rho`` narrower than a cell
+    add a fraction of the length, which carries over to curves of any length:
+    a ratio (up to 1.10 on the route check's grid of three quarters of the
+    step, seed 172 of ``validation/default_tol.py``, on curves of all
+    lengths).  Near a crossing point, where ``rho`` vanishes, the grid route
+    cannot follow the geodesic within a cell or two, at a cost of the order
+    of those cells: an amount, which makes the ratio of a curve much shorter
+    than a cell large (4 on seed 244: 1.2e-4 refined, 4.6e-4 on the grid).
+    Applied as a ratio to every entry, it made the program ask for the
+    refinement of 39 entries where 9 settle the choice (16 s instead of 1 s,
+    the same value).  A short curve's ratio beyond twice the stencil's bias
+    cannot come from the stencil or a coarse cell, and is passed on as the
+    amount it costs; a short curve with a large excess in absolute terms (a
+    valley) still lowers every longer entry's bound by that excess.  Like
+    the single ratio it replaces, this is an estimate of the grid's error
+    drawn from the curves refined so far, with a 2 % margin, not a proof.
+    """
+    grid = np.asarray(grid, dtype=float)
+    pts = [(G, L) for G, L in refined if L > 0 and np.isfinite(G)]
+    if not pts:
+        return grid / bias
+    pts.sort()
+    Gk = np.array([G for G, _ in pts])
+    Lk = np.array([L for _, L in pts])
+    ratio = Gk / Lk
+    cap = 2.0 * bias - 1.0
+    rest = np.maximum(Gk - cap * Lk, 0.0)
+    # entries at least a class-th as long as G: a suffix of the sorted refined entries; the shorter ones: the prefix
+    first = np.searchsorted(Gk, grid / _LENGTH_CLASS, side="left")
+    long_ratio = np.append(np.maximum.accumulate(ratio[::-1])[::-1], 0.0)[first]
+    short_ratio = np.concatenate([[0.0], np.maximum.accumulate(np.minimum(ratio, cap))])[first]
+    b = np.maximum(bias, 1.02 * np.maximum(long_ratio, short_ratio))
+    A = 1.02 * np.concatenate([[0.0], np.maximum.accumulate(rest)])[first]
+    with np.errstate(invalid="ignore"):  # inf - finite stays inf
+        return np.maximum(grid - A, 0.0) / b
 
 
 def _foreseen(missing: list, costs: dict, refined, solve, most: int = 8) -> list:

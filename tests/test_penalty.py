@@ -7,6 +7,8 @@ import warnings
 import numpy as np
 import pytest
 from conftest import RTOL, insert_vertex, random_crossing_scene, rigid
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import direct
 from direct.metric import get_metric, segment_lengths
@@ -325,3 +327,81 @@ def test_upper_bound_of_the_grid_value_is_the_grid_value():
         res = direct.penalty(scene, refine=False)
         assert res.upper_bound == pytest.approx(res.value, rel=1e-11)
         assert res.upper_bound >= direct.penalty(scene).value * (1 - 1e-6)  # the grid never undercuts J
+
+
+def _lower_bounds():
+    import sys
+
+    P = sys.modules["direct.penalty"]
+    return P._grid_lower_bounds, P._LENGTH_CLASS
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.tuples(st.floats(1e-6, 10.0), st.floats(0.05, 5.0)), min_size=1, max_size=12))
+def test_grid_lower_bounds_stay_below_every_refined_entry(pairs):
+    """``_grid_lower_bounds`` (the optimistic costs of entries not refined yet) is drawn from the refined entries: each
+    of them, bounded at its own grid length, gets at most its refined length over 1.02, and no bound exceeds the grid
+    length over the stencil's bias."""
+    bound, _ = _lower_bounds()
+    refined = [(L * r, L) for L, r in pairs]  # grid length = refined length * ratio (ratios 0.05 to 5)
+    G = np.array([g for g, _ in refined])
+    out = bound(G, refined, 1.08)
+    assert np.all(out <= np.array([L for _, L in refined]) / 1.02 * (1 + 1e-12))
+    assert np.all(out <= G / 1.08 * (1 + 1e-12))
+    assert np.all(out >= 0)
+
+
+def test_grid_lower_bounds_take_a_short_curves_overestimate_as_an_amount():
+    """A curve far shorter than an entry whose grid length is 4 times its refined one (near a crossing point, where
+    the grid cannot follow it within a cell) counts for that entry with a ratio of at most twice the stencil's bias,
+    the rest of its excess as an amount; a short curve with a large excess (a valley) lowers the bound by that excess;
+    a short curve's modest ratio (a coarse grid's) counts whole; entries of its own length class take its ratio."""
+    bound, C = _lower_bounds()
+    bias = 1.08
+    cap = 2 * bias - 1
+    tiny = (4.6e-4, 1.15e-4)  # seed 244 of validation/default_tol.py
+    long = (0.5897, 0.5705)
+    G = np.array([0.78, 1e-3, np.inf])
+    out = bound(G, [tiny, long], bias)
+    b = 1.02 * cap
+    assert out[0] == pytest.approx((0.78 - 1.02 * (tiny[0] - cap * tiny[1])) / b, rel=1e-14)
+    assert out[0] > 0.78 / (1.02 * 4) * 3  # one ratio for all would give 0.19
+    assert out[1] == pytest.approx(1e-3 / (1.02 * tiny[0] / tiny[1]), rel=1e-14)  # within 10 times the tiny curve
+    assert out[2] == np.inf
+    valley = (0.5, 0.05)  # a short curve 10 times too long on the grid
+    out = bound(np.array([0.78 * C]), [valley, long], bias)
+    assert out[0] == pytest.approx((0.78 * C - 1.02 * (0.5 - cap * 0.05)) / b, rel=1e-14)
+    coarse = (0.0302391, 0.0275964)  # seed 172 on the route check's grid: a ratio of 1.0958, counted whole
+    out = bound(np.array([1.04432]), [coarse, (0.924913, 0.917801)], 1.0775)
+    assert out[0] == pytest.approx(1.04432 / (1.02 * coarse[0] / coarse[1]), rel=1e-14)
+    assert out[0] < 0.945398  # that entry's refined length: its grid ratio is 1.105
+    assert bound(np.array([2.0]), [], bias)[0] == 2.0 / bias
+
+
+def test_a_short_curves_large_ratio_does_not_send_every_entry_to_refinement(monkeypatch):
+    """Seed 138 of the random scenes of ``validation/default_tol.py``: a curve between two close crossing points has
+    a grid length several times its refined one. Taken as a ratio for every entry (``_LENGTH_CLASS`` infinite: the
+    rule before) it made the program ask for more curves to be refined (7 instead of 5); the value is the same."""
+    import sys
+
+    P = sys.modules["direct.penalty"]
+    from conftest import study_scenes
+
+    scene = dict(study_scenes([138]))[138]
+    runs = {}
+    rule = P._LENGTH_CLASS
+    for cls in (rule, np.inf):
+        monkeypatch.setattr(P, "_LENGTH_CLASS", cls)
+        jobs = []
+        refine_many = P.refine_many
+
+        def counting(domain, metric, js, *args, _inner=refine_many, _jobs=jobs, **kwargs):
+            _jobs.append(len(js))
+            return _inner(domain, metric, js, *args, **kwargs)
+
+        monkeypatch.setattr(P, "refine_many", counting)
+        runs[cls] = (direct.penalty(scene), sum(jobs))
+        monkeypatch.setattr(P, "refine_many", refine_many)
+    (new, n_new), (old, n_old) = runs[rule], runs[np.inf]
+    assert new.value == old.value and new.error_estimate == old.error_estimate
+    assert n_new < n_old
