@@ -1,7 +1,7 @@
 """Do two versions of ``direct`` return the same values?  Bit for bit, on the scenes of the studies.
 
 Run ``python validation/same_values.py OLD [NEW]`` (for example ``python validation/same_values.py HEAD~1``;
-about forty minutes with every family, two processes side by side).  ``OLD`` and ``NEW`` are git revisions,
+about twenty-five minutes with every family, two processes side by side).  ``OLD`` and ``NEW`` are git revisions,
 checked out into temporary worktrees; without ``NEW`` the working tree is the new version.  Both run the
 same calls of ``direct.penalty``, each in its own process (the two at once, on two cores), and the script
 compares every value and ``error_estimate`` bit for bit and prints, per family and tolerance, how many
