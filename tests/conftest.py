@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import sys
+
 import numpy as np
 import pytest
 
@@ -9,6 +11,22 @@ import direct
 
 # relative agreement expected between two computations of the same J at the default tol 1e-3
 RTOL = 5e-3
+
+
+@pytest.fixture
+def refine_batches(monkeypatch) -> list[int]:
+    """The number of curves in each batch ``direct.penalty`` sends to ``refine_many``, in order (a spy: the
+    refinement itself runs unchanged). Read ``len`` before a call to take that call's batches alone."""
+    P = sys.modules["direct.penalty"]
+    batches: list[int] = []
+    inner = P.refine_many
+
+    def counting(domain, metric, jobs, *args, **kwargs):
+        batches.append(len(jobs))
+        return inner(domain, metric, jobs, *args, **kwargs)
+
+    monkeypatch.setattr(P, "refine_many", counting)
+    return batches
 
 
 def random_intervals(rng: np.random.Generator, n_comp: int = 2, n_vert: int = 5, spread: float = 1.0) -> direct.Scene:

@@ -310,7 +310,7 @@ def test_torus_closed_curve_against_independent_minimization(metric, rel):
     assert res.value / 2 == pytest.approx(best, rel=rel)
 
 
-def test_foreseen_entries_batch_the_rounds_without_changing_the_choice(monkeypatch):
+def test_foreseen_entries_batch_the_rounds_without_changing_the_choice(monkeypatch, refine_batches):
     """The star polygon of 9 vertices (a double cover, 9 crossings on the annulus): by symmetry every point's
     curve to the diagonal is a contender in turn. Refining the entries the next solves would ask for in one batch
     (``_foreseen``) must give the same value and pairs as refining only the chosen ones, in fewer batches."""
@@ -322,16 +322,8 @@ def test_foreseen_entries_batch_the_rounds_without_changing_the_choice(monkeypat
     for mode in ("batched", "one by one"):
         if mode == "one by one":
             monkeypatch.setattr(P, "_foreseen", lambda missing, *args, **kwargs: missing)
-        batches = []
-        refine_many = P.refine_many
-
-        def counting(domain, metric, jobs, *args, _inner=refine_many, _batches=batches, **kwargs):
-            _batches.append(len(jobs))
-            return _inner(domain, metric, jobs, *args, **kwargs)
-
-        monkeypatch.setattr(P, "refine_many", counting)
-        runs[mode] = (direct.penalty(scene), batches)
-        monkeypatch.setattr(P, "refine_many", refine_many)
+        first = len(refine_batches)
+        runs[mode] = (direct.penalty(scene), refine_batches[first:])
     (fast, nb_fast), (slow, nb_slow) = runs["batched"], runs["one by one"]
     assert fast.value == pytest.approx(slow.value, rel=1e-12)
     assert sorted(str((p.start_crossing, p.end_crossing, p.start, p.end)) for p in fast.pairs) == sorted(

@@ -378,7 +378,7 @@ def test_grid_lower_bounds_take_a_short_curves_overestimate_as_an_amount():
     assert bound(np.array([2.0]), [], bias)[0] == 2.0 / bias
 
 
-def test_a_short_curves_large_ratio_does_not_send_every_entry_to_refinement(monkeypatch):
+def test_a_short_curves_large_ratio_does_not_send_every_entry_to_refinement(monkeypatch, refine_batches):
     """Seed 138 of the random scenes of ``validation/default_tol.py``: a curve between two close crossing points has
     a grid length several times its refined one. Taken as a ratio for every entry (``_LENGTH_CLASS`` infinite: the
     rule before) it made the program ask for more curves to be refined (7 instead of 5); the value is the same."""
@@ -392,16 +392,8 @@ def test_a_short_curves_large_ratio_does_not_send_every_entry_to_refinement(monk
     rule = P._LENGTH_CLASS
     for cls in (rule, np.inf):
         monkeypatch.setattr(P, "_LENGTH_CLASS", cls)
-        jobs = []
-        refine_many = P.refine_many
-
-        def counting(domain, metric, js, *args, _inner=refine_many, _jobs=jobs, **kwargs):
-            _jobs.append(len(js))
-            return _inner(domain, metric, js, *args, **kwargs)
-
-        monkeypatch.setattr(P, "refine_many", counting)
-        runs[cls] = (direct.penalty(scene), sum(jobs))
-        monkeypatch.setattr(P, "refine_many", refine_many)
+        first = len(refine_batches)
+        runs[cls] = (direct.penalty(scene), sum(refine_batches[first:]))
     (new, n_new), (old, n_old) = runs[rule], runs[np.inf]
     assert new.value == old.value and new.error_estimate == old.error_estimate
     assert n_new < n_old
