@@ -117,7 +117,7 @@ _GRAZING = 0.1
 _STENCIL_BIAS = {8: 0.0824, 16: 0.0275, 32: 0.0131}
 
 #: in _grid_lower_bounds, a refined entry's grid overestimate counts as a ratio for the entries whose grid length is
-#: at most this many times its own, and as an absolute excess for the longer ones
+#: at most this many times its own; for the longer ones, as a ratio capped at 2 bias - 1 plus the rest as an amount
 _LENGTH_CLASS = 10.0
 
 #: the route check's searches on the second grid stop at this factor times the curve's length on the first grid
@@ -406,7 +406,9 @@ def _settle(grid_costs: dict, solve, refine_keys, bias: float, finish=None, cach
     entries refined so far, with a margin, when that is larger (coarse grids
     overestimate more than the stencil's bias), a short curve's counted partly
     as an amount (:func:`_grid_lower_bounds`); so a choice made of refined
-    entries cannot be beaten by an unrefined one.  From the second round on,
+    entries is not beaten by an unrefined one as long as these bounds hold.
+    They are estimates drawn from the curves refined so far, not proofs (see
+    :func:`_grid_lower_bounds` for one that failed, harmlessly).  From the second round on,
     the entries the next solves would ask for are refined in the same batch
     (:func:`_foreseen`).  ``cache`` and ``finished`` may bring entries
     refined, and finished, already.
@@ -481,10 +483,11 @@ def _grid_lower_bounds(grid: np.ndarray, refined: list, bias: float) -> np.ndarr
     of those cells: an amount, which makes the ratio of a curve much shorter
     than a cell large (4 on seed 244: 1.2e-4 refined, 4.6e-4 on the grid).
     Applied as a ratio to every entry, it made the program ask for the
-    refinement of 39 entries where 9 settle the choice (16 s instead of 1 s,
-    the same value).  A short curve's ratio beyond twice the stencil's bias
-    cannot come from the stencil or a coarse cell, and is passed on as the
-    amount it costs; a short curve with a large excess in absolute terms (a
+    refinement of 39 entries where 9 settle the choice (21 s instead of
+    3.8 s, the same value).  A short curve's ratio beyond ``2 bias - 1``
+    (twice ``bias - 1``, the stencil's overestimate plus the 5 % margin for
+    coarse grids) is not taken to come from the stencil or a coarse cell,
+    and is passed on as the amount it costs; a short curve with a large excess in absolute terms (a
     valley) still lowers every longer entry's bound by that excess.  Like
     the single ratio it replaces, this is an estimate of the grid's error
     drawn from the curves refined so far, with a 2 % margin, not a proof:
@@ -505,13 +508,13 @@ def _grid_lower_bounds(grid: np.ndarray, refined: list, bias: float) -> np.ndarr
     cap = 2.0 * bias - 1.0
     rest = np.maximum(Gk - cap * Lk, 0.0)
     # entries at least a class-th as long as G: a suffix of the sorted refined entries; the shorter ones: the prefix
-    first = np.searchsorted(Gk, grid / _LENGTH_CLASS, side="left")
+    with np.errstate(invalid="ignore"):  # inf / inf (an unreached entry, _LENGTH_CLASS infinite): nan sorts last
+        first = np.searchsorted(Gk, grid / _LENGTH_CLASS, side="left")
     long_ratio = np.append(np.maximum.accumulate(ratio[::-1])[::-1], 0.0)[first]
     short_ratio = np.concatenate([[0.0], np.maximum.accumulate(np.minimum(ratio, cap))])[first]
     b = np.maximum(bias, 1.02 * np.maximum(long_ratio, short_ratio))
     A = 1.02 * np.concatenate([[0.0], np.maximum.accumulate(rest)])[first]
-    with np.errstate(invalid="ignore"):  # inf - finite stays inf
-        return np.maximum(grid - A, 0.0) / b
+    return np.maximum(grid - A, 0.0) / b
 
 
 def _foreseen(missing: list, costs: dict, refined, solve, most: int = 8) -> list:

@@ -371,7 +371,10 @@ def test_grid_lower_bounds_take_a_short_curves_overestimate_as_an_amount():
     valley = (0.5, 0.05)  # a short curve 10 times too long on the grid
     out = bound(np.array([0.78 * C]), [valley, long], bias)
     assert out[0] == pytest.approx((0.78 * C - 1.02 * (0.5 - cap * 0.05)) / b, rel=1e-14)
-    coarse = (0.0302391, 0.0275964)  # seed 172 on the route check's grid: a ratio of 1.0958, counted whole
+    longer = (3.0, 2.5)  # of the entry's class: its ratio 1.2 counts whole, beside the valley's amount
+    out = bound(np.array([0.78 * C]), [valley, longer], bias)
+    assert out[0] == pytest.approx((0.78 * C - 1.02 * (0.5 - cap * 0.05)) / (1.02 * 1.2), rel=1e-14)
+    coarse = (0.0302391, 0.0275964)  # seed 172 on the second pass's grid: a ratio of 1.0958, counted whole
     out = bound(np.array([1.04432]), [coarse, (0.924913, 0.917801)], 1.0775)
     assert out[0] == pytest.approx(1.04432 / (1.02 * coarse[0] / coarse[1]), rel=1e-14)
     assert out[0] < 0.945398  # that entry's refined length: its grid ratio is 1.105

@@ -1,7 +1,7 @@
 """Do two versions of ``direct`` return the same values?  Bit for bit, on the scenes of the studies.
 
 Run ``python validation/same_values.py OLD [NEW]`` (for example ``python validation/same_values.py HEAD~1``;
-about twenty-five minutes with every family, two processes side by side).  ``OLD`` and ``NEW`` are git revisions,
+about twenty-two minutes with every family, two processes side by side).  ``OLD`` and ``NEW`` are git revisions,
 checked out into temporary worktrees; without ``NEW`` the working tree is the new version.  Both run the
 same calls of ``direct.penalty``, each in its own process (the two at once, on two cores), and the script
 compares every value and ``error_estimate`` bit for bit and prints, per family and tolerance, how many
@@ -94,14 +94,23 @@ def _read(path: str) -> dict:
     return {(r["family"], r["scene"], r["settings"]): r for r in rows}
 
 
+def _bits(x) -> str:
+    """A value as its exact text: floats by ``repr`` (so -0.0 differs from 0.0 and a NaN equals a NaN)."""
+    return repr(float(x)) if isinstance(x, (int, float)) else repr(x)
+
+
 def compare(old: dict, new: dict) -> list[dict]:
-    """One row per call present in both runs."""
+    """One row per call present in both runs (the calls present in one only are printed)."""
+    only = sorted(set(old) ^ set(new))
+    if only:
+        print(f"{len(only)} calls in one run only (each version builds its scenes): {only[:5]}")
     rows = []
     for key, a in old.items():
         if key not in new:
             continue
         b = new[key]
-        same = a["value"] == b["value"] and a["error_estimate"] == b["error_estimate"]
+        same = (_bits(a["value"]) == _bits(b["value"])
+                and _bits(a["error_estimate"]) == _bits(b["error_estimate"]))
         change = ""
         if not same and isinstance(a["value"], float) and isinstance(b["value"], float) and a["value"]:
             change = abs(b["value"] - a["value"]) / abs(a["value"])
@@ -123,11 +132,16 @@ def summary(rows: list[dict]) -> str:
         line = (f"{family} tol={tol:g}: {same} of {len(rs)} identical; time {t_old:.0f} s -> {t_new:.0f} s "
                 f"(old/new {t_old / t_new:.2f})")
         diff = [r for r in rs if not r["identical"]]
-        if diff:
-            worst = max(diff, key=lambda r: r["relative_change"] if r["relative_change"] != "" else float("inf"))
+        measured = [r for r in diff if r["relative_change"] != ""]  # two nonzero floats
+        if measured:
+            worst = max(measured, key=lambda r: r["relative_change"])
             est = worst["old_estimate"] / abs(worst["old_value"]) if worst["old_estimate"] else float("nan")
             line += (f"; largest change {worst['relative_change']:.1e} relative ({worst['scene']}, "
-                     f"old estimate {est:.1e} relative); changed: {', '.join(r['scene'] for r in diff)}")
+                     f"old estimate {est:.1e} relative)")
+        if diff:
+            line += f"; changed: {', '.join(r['scene'] for r in diff)}"
+            line += "".join(f"; {r['scene']}: {r['old_value']!r} -> {r['new_value']!r}"
+                            for r in diff if r["relative_change"] == "")
         lines.append(line)
     return "\n".join(lines)
 
@@ -140,23 +154,25 @@ def main(argv=None) -> list[dict]:
     parser.add_argument("--csv", default="same_values.csv")
     args = parser.parse_args(argv)
     with tempfile.TemporaryDirectory() as tmp:
-        trees = {}
-        for side, rev in (("old", args.old), ("new", args.new)):
-            if rev is None:
-                trees[side] = ROOT
-                continue
-            trees[side] = os.path.join(tmp, side)
-            subprocess.run(["git", "-C", ROOT, "worktree", "add", "--detach", "-q", trees[side], rev], check=True)
+        trees, added = {"old": ROOT, "new": ROOT}, []
         try:
-            outs = {side: os.path.join(tmp, f"{side}.jsonl") for side in trees}
-            procs = [_start(trees[side], args.families, outs[side]) for side in ("old", "new")]
-            if any(p.wait() for p in procs):
-                raise SystemExit("a run failed (see its traceback above)")
-            rows = compare(_read(outs["old"]), _read(outs["new"]))
-        finally:
             for side, rev in (("old", args.old), ("new", args.new)):
                 if rev is not None:
-                    subprocess.run(["git", "-C", ROOT, "worktree", "remove", "--force", trees[side]], check=False)
+                    trees[side] = os.path.join(tmp, side)
+                    subprocess.run(["git", "-C", ROOT, "worktree", "add", "--detach", "-q", trees[side], rev],
+                                   check=True)
+                    added.append(trees[side])
+            outs = {side: os.path.join(tmp, f"{side}.jsonl") for side in trees}
+            procs = [_start(trees[side], args.families, outs[side]) for side in ("old", "new")]
+            codes = [p.wait() for p in procs]  # both, before their worktrees go
+            if any(codes):
+                raise SystemExit(f"a run failed (exit codes {codes}; see its traceback above)")
+            rows = compare(_read(outs["old"]), _read(outs["new"]))
+        finally:
+            for tree in added:
+                subprocess.run(["git", "-C", ROOT, "worktree", "remove", "--force", tree], check=False)
+    if not rows:
+        raise SystemExit("no call in common between the two runs")
     with open(os.path.join(HERE, args.csv), "w", newline="") as fh:
         w = csv.DictWriter(fh, fieldnames=list(rows[0]))
         w.writeheader()
