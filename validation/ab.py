@@ -21,6 +21,7 @@ vertices (double covers sampled with an odd number of vertices, ``double_cover``
 from __future__ import annotations
 
 import argparse
+import contextlib
 import csv
 import json
 import os
@@ -73,6 +74,21 @@ print(json.dumps(out))
 """
 
 
+@contextlib.contextmanager
+def worktree(rev: str | None):
+    """The path of a checkout of ``rev`` in a temporary git worktree, removed on exit; ``None``: the working tree."""
+    if rev is None:
+        yield ROOT
+        return
+    with tempfile.TemporaryDirectory() as tmp:
+        tree = os.path.join(tmp, "tree")
+        subprocess.run(["git", "worktree", "add", "--detach", "-q", tree, rev], cwd=ROOT, check=True)
+        try:
+            yield tree
+        finally:
+            subprocess.run(["git", "worktree", "remove", "--force", tree], cwd=ROOT, check=False)
+
+
 def run(tree: str, repeat: int, family: str = "standard", tol: float = 1e-3) -> dict:
     """Best times and values of the ``direct`` in ``tree``, measured in a fresh process."""
     code = CHILD.format(validation=HERE, tests=os.path.join(ROOT, "tests"), repeat=repeat, family=family, tol=tol)
@@ -91,17 +107,12 @@ def main(argv=None) -> int:
     ap.add_argument("--csv", default="ab.csv", help="output file name, beside this script")
     args = ap.parse_args(argv)
     rows = []
-    with tempfile.TemporaryDirectory() as tmp:
-        old = os.path.join(tmp, "old")
-        subprocess.run(["git", "worktree", "add", "--detach", "-q", old, args.rev], cwd=ROOT, check=True)
-        try:
-            for r in range(args.rounds):
-                for label, tree in (("old", old), ("new", ROOT)):
-                    for scene, (sec, value, est) in run(tree, args.repeat, args.family, args.tol).items():
-                        rows.append(dict(round=r, version=label, scene=scene, seconds=sec, value=value,
-                                         error_estimate=est))
-        finally:
-            subprocess.run(["git", "worktree", "remove", "--force", old], cwd=ROOT, check=False)
+    with worktree(args.rev) as old:
+        for r in range(args.rounds):
+            for label, tree in (("old", old), ("new", ROOT)):
+                for scene, (sec, value, est) in run(tree, args.repeat, args.family, args.tol).items():
+                    rows.append(dict(round=r, version=label, scene=scene, seconds=sec, value=value,
+                                     error_estimate=est))
     with open(os.path.join(HERE, args.csv), "w", newline="") as fh:
         w = csv.DictWriter(fh, fieldnames=list(rows[0]))
         w.writeheader()

@@ -22,6 +22,7 @@ rough ratio; ``ab.py`` times two versions properly (alternating fresh processes)
 from __future__ import annotations
 
 import argparse
+import contextlib
 import csv
 import json
 import os
@@ -31,6 +32,9 @@ import tempfile
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
+sys.path.insert(0, HERE)
+from ab import worktree  # noqa: E402  (a checkout of a revision in a temporary git worktree)
+
 FAMILIES = ("builtin", "intervals", "closed", "tori", "multistart")
 
 CHILD = r"""
@@ -153,24 +157,15 @@ def main(argv=None) -> list[dict]:
     parser.add_argument("--families", nargs="+", choices=FAMILIES, default=list(FAMILIES))
     parser.add_argument("--csv", default="same_values.csv")
     args = parser.parse_args(argv)
-    with tempfile.TemporaryDirectory() as tmp:
-        trees, added = {"old": ROOT, "new": ROOT}, []
-        try:
-            for side, rev in (("old", args.old), ("new", args.new)):
-                if rev is not None:
-                    trees[side] = os.path.join(tmp, side)
-                    subprocess.run(["git", "-C", ROOT, "worktree", "add", "--detach", "-q", trees[side], rev],
-                                   check=True)
-                    added.append(trees[side])
-            outs = {side: os.path.join(tmp, f"{side}.jsonl") for side in trees}
-            procs = [_start(trees[side], args.families, outs[side]) for side in ("old", "new")]
-            codes = [p.wait() for p in procs]  # both, before their worktrees go
-            if any(codes):
-                raise SystemExit(f"a run failed (exit codes {codes}; see its traceback above)")
-            rows = compare(_read(outs["old"]), _read(outs["new"]))
-        finally:
-            for tree in added:
-                subprocess.run(["git", "-C", ROOT, "worktree", "remove", "--force", tree], check=False)
+    with contextlib.ExitStack() as stack:
+        tmp = stack.enter_context(tempfile.TemporaryDirectory())
+        trees = {side: stack.enter_context(worktree(rev)) for side, rev in (("old", args.old), ("new", args.new))}
+        outs = {side: os.path.join(tmp, f"{side}.jsonl") for side in trees}
+        procs = [_start(trees[side], args.families, outs[side]) for side in ("old", "new")]
+        codes = [p.wait() for p in procs]  # both, before their worktrees go
+        if any(codes):
+            raise SystemExit(f"a run failed (exit codes {codes}; see its traceback above)")
+        rows = compare(_read(outs["old"]), _read(outs["new"]))
     if not rows:
         raise SystemExit("no call in common between the two runs")
     with open(os.path.join(HERE, args.csv), "w", newline="") as fh:
