@@ -353,8 +353,8 @@ def test_grid_lower_bounds_stay_below_every_refined_entry(pairs):
 
 def test_grid_lower_bounds_take_a_short_curves_overestimate_as_an_amount():
     """A curve far shorter than an entry whose grid length is 4 times its refined one (near a crossing point, where
-    the grid cannot follow it within a cell) counts for that entry with a ratio of at most twice the stencil's bias,
-    the rest of its excess as an amount; a short curve with a large excess (a valley) lowers the bound by that excess;
+    the grid cannot follow it within a cell) counts for that entry with a ratio of at most ``2 bias - 1``, the rest of
+    its excess as an amount; a short curve with a large excess (a valley) lowers the bound by that excess;
     a short curve's modest ratio (a coarse grid's) counts whole; entries of its own length class take its ratio."""
     bound, C = _lower_bounds()
     bias = 1.08
