@@ -133,6 +133,29 @@ def test_G_is_invariant_under_reparametrization_and_g_is_not():
         assert abs(l1 - l0) > 10 * RTOL * l0
 
 
+@settings(max_examples=4, deadline=None)
+@given(seed=st.integers(0, 5), steps=st.lists(st.floats(0.2, 3.0), min_size=8, max_size=8))
+def test_G_reparametrized_agrees_within_the_two_estimates(seed, steps):
+    """Respaced references (other cells, other grid routes, other refined curves) give J^G within both estimates.
+
+    ``validation/invariance.py`` runs the same relation at ``tol=1e-5`` on 40 random scenes.
+    """
+    sc = random_crossing_scene(seed)
+    comps = []
+    for k, comp in enumerate(sc.components):
+        ref = np.asarray(comp.reference, dtype=float)
+        direction = (ref[-1] - ref[0]) / np.linalg.norm(ref[-1] - ref[0])
+        s = np.concatenate([[0.0], np.cumsum(np.roll(steps, k)[: len(ref) - 1])])
+        comps.append(direct.Component(ref[0] + s[:, None] * direction, comp.deformed, name=comp.name))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", direct.ToleranceWarning)  # an estimate above tol must still cover the error
+        base = direct.penalty(sc, tol=1e-4)
+        reparam = direct.penalty(direct.Scene(tuple(comps)), tol=1e-4)
+    assert base.value > 0
+    assert abs(reparam.value - base.value) <= base.error_estimate + reparam.error_estimate
+    assert reparam.grid_value != base.grid_value  # another grid: not the same computation
+
+
 @pytest.mark.parametrize("seed", range(3))
 def test_scipy_and_networkx_agree(seed):
     sc = random_crossing_scene(seed)

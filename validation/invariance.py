@@ -5,11 +5,9 @@ Run ``python validation/invariance.py`` (about ten minutes).  Issue 4 judges
 ``error_estimate`` covering the true error.  ``tol_1e5.py`` measures that
 against ``direct``'s own values at ``tol=1e-6``, on the same grids.  This
 study needs no reference: the paper's metric ``G`` is invariant under
-reparametrization (Example 14), and ``J`` does not depend on the orientation
-of the components, their order, or where a closed component's vertex list
-starts.  Each variant below gives ``direct`` a different parameter domain
-(other cell sizes, a mirrored grid, another seam), so its grid routes,
-refined curves and estimates are computed afresh, and
+reparametrization (Example 14), ``J`` does not depend on the orientation of
+the components, their order, or where a closed component's vertex list
+starts, nor on the grid that ``direct`` starts from.  For each scene,
 
     |J(variant) - J(scene)| <= error_estimate(variant) + error_estimate(scene)
 
@@ -20,13 +18,26 @@ Scenes and variants (``tol=1e-5``, the metric ``G``):
 
 * the random interval scenes of ``tests/conftest.py``'s ``study_scenes``
   (seeds 100 to 139: 2 or 3 polylines of 7 vertices, 1 to 10 crossings):
-  *reparametrized*, every reference polyline respaced (segment lengths drawn
-  in 0.2 to 3, the deformation kept), and *reversed and reordered*, every
+  *reparametrized, reversed and reordered*, every reference polyline
+  respaced (segment lengths drawn in 0.2 to 3, the deformation kept), every
   component reversed and their order reversed;
 * the random closed polygons of ``random_closed.py`` (seeds 0 to 19, those
-  with crossings): *reparametrized*, the reference vertices moved to random
-  increasing angles on its circle, and *reversed and relabelled*, the
-  component reversed and its vertex list started at another vertex.
+  with crossings): *reparametrized, reversed and relabelled*, the reference
+  vertices moved to random increasing angles on its circle, the component
+  reversed and its vertex list started at another vertex;
+* both: *grid of 80 cells*, the same scene from a coarser grid.  At this
+  tolerance every call also makes a second pass on a grid of three quarters
+  of the step (``second_pass``): the scene is solved on grids of 128 and 96
+  cells, the variant on grids of 80 and 60.
+
+The two variants test different things.  For ``G`` the grid is laid in the
+deformed arclength (``tests/test_penalty.py``,
+``test_grid_value_is_invariant_under_reparametrization_for_G``), so a
+reparametrization leaves the grid's routes as they were: only the
+refinement, which works in the reference parameters, runs on other
+coordinates (other normals, other segment lengths).  The coarser grid
+changes everything from the start: cells, routes, the curves the program
+picks first, the starts of the refinement.
 
 Writes ``invariance.csv`` and ``invariance.png`` beside this file and prints
 a summary.
@@ -37,8 +48,6 @@ from __future__ import annotations
 import csv
 import os
 import sys
-import time
-import warnings
 
 import numpy as np
 
@@ -48,19 +57,12 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
 sys.path.insert(0, os.path.join(HERE, "..", "tests"))
 from conftest import study_scenes  # noqa: E402
+from default_tol import _solve as solve_recording_warnings  # noqa: E402
 from random_closed import random_closed  # noqa: E402
 
 TOL = 1e-5
-
-
-def _solve(scene):
-    """``(result, warned, seconds)`` at ``TOL``, ToleranceWarnings recorded."""
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always", direct.ToleranceWarning)
-        t0 = time.perf_counter()
-        res = direct.penalty(scene, tol=TOL)
-        seconds = time.perf_counter() - t0
-    return res, any(issubclass(w.category, direct.ToleranceWarning) for w in caught), seconds
+#: the resolution of the second variant (the default is 128 cells)
+COARSER = 80
 
 
 def respaced(comp: direct.Component, rng: np.random.Generator) -> direct.Component:
@@ -90,18 +92,20 @@ def respaced(comp: direct.Component, rng: np.random.Generator) -> direct.Compone
 
 
 def variants(family: str, scene: direct.Scene, seed: int) -> dict:
-    """The two variants of a scene (see the module docstring)."""
+    """``{name: (scene, keyword arguments of direct.penalty)}``: the two variants of a scene (module docstring)."""
     rng = np.random.default_rng(1000 + seed)
-    out = {"reparametrized": direct.Scene(tuple(respaced(c, rng) for c in scene.components))}
+    comps = [respaced(c, rng) for c in scene.components]
     if family == "intervals":
-        out["reversed and reordered"] = direct.Scene(tuple(c.reversed() for c in scene.components[::-1]))
+        moved = direct.Scene(tuple(c.reversed() for c in comps[::-1]))
+        name = "reparametrized, reversed and reordered"
     else:
-        (comp,) = scene.components
+        (comp,) = comps
         rev = comp.reversed()
         k = int(rng.integers(1, comp.n_vertices))
-        out["reversed and relabelled"] = direct.Scene((direct.Component(
-            np.roll(rev.reference, -k, axis=0), np.roll(rev.deformed, -k, axis=0), True, comp.name),))
-    return out
+        moved = direct.Scene((direct.Component(np.roll(rev.reference, -k, axis=0), np.roll(rev.deformed, -k, axis=0),
+                                               True, comp.name),))
+        name = "reparametrized, reversed and relabelled"
+    return {name: (moved, {}), f"grid of {COARSER} cells": (scene, {"resolution": COARSER})}
 
 
 def main(interval_seeds=range(100, 140), closed_seeds=range(20)) -> list[dict]:
@@ -113,14 +117,14 @@ def main(interval_seeds=range(100, 140), closed_seeds=range(20)) -> list[dict]:
             scenes.append(("closed", seed, sc))
     for family, seed, sc in scenes:
         try:
-            base, base_warned, base_sec = _solve(sc)
+            base, base_warned, base_sec = solve_recording_warnings(sc, TOL)
         except direct.DegenerateError as exc:  # a contact the generic-perturbation rule cannot decide
             print(f"{family} {seed}: {exc}")
             continue
         if base.value == 0.0:
             continue
-        for name, variant in variants(family, sc, seed).items():
-            res, warned, sec = _solve(variant)
+        for name, (variant, kwargs) in variants(family, sc, seed).items():
+            res, warned, sec = solve_recording_warnings(variant, TOL, **kwargs)
             diff = res.value - base.value
             allowed = res.error_estimate + base.error_estimate
             rows.append(dict(family=family, seed=seed, crossings=len(base.crossings), variant=name,
@@ -157,15 +161,15 @@ def _chart(rows):
 
     fig, ax = plt.subplots(figsize=(6, 4.5))
     floor = 1e-14
-    markers = {"reparametrized": "o", "reversed and reordered": "s", "reversed and relabelled": "^"}
     for k, family in enumerate(("intervals", "closed")):
-        for name, marker in markers.items():
-            rs = [r for r in rows if r["family"] == family and r["variant"] == name]
+        for name, marker in (("reparametrized", "o"), ("grid", "s")):
+            rs = [r for r in rows if r["family"] == family and r["variant"].startswith(name)]
             if not rs:
                 continue
             est = np.array([r["relative_estimates"] for r in rs])
             diff = np.maximum(np.array([abs(r["relative_difference"]) for r in rs]), floor)
-            ax.loglog(est, diff, marker, ms=4, alpha=0.7, color=f"C{k}", label=f"{family}, {name} ({len(rs)})")
+            ax.loglog(est, diff, marker, ms=4, alpha=0.7, color=f"C{k}",
+                      label=f"{family}, {rs[0]['variant']} ({len(rs)})")
     lim = [1e-9, 1e-3]
     ax.loglog(lim, lim, "k--", lw=0.8, label="difference = sum of estimates")
     ax.axhline(TOL, color="C3", lw=0.8, ls=":", label=f"tol = {TOL:g}")
