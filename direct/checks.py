@@ -20,7 +20,28 @@ def _label(name: str) -> str:
     return f"component {name!r}" if name else "component"
 
 
+def _is_number(x: Any) -> bool:
+    """A real number, not a bool or a string (which numpy would convert)."""
+    return isinstance(x, (int, float, np.integer, np.floating)) and not isinstance(x, (bool, np.bool_))
+
+
 def _as_vertices(a: Any, what: str, label: str) -> np.ndarray:
+    if isinstance(a, np.ndarray) and a.dtype.kind not in "iuf" and a.dtype != object:
+        raise SceneError(f"{label}: {what} vertices must be numbers, got an array of {a.dtype}")
+    if not isinstance(a, np.ndarray) or a.dtype == object:
+        if not isinstance(a, (list, tuple, np.ndarray)):
+            raise SceneError(f"{label}: {what} vertices must be a list of [x, y] pairs, got {type(a).__name__}")
+        sizes = set()
+        for k, v in enumerate(a):
+            if isinstance(v, np.ndarray) and v.dtype.kind in "iuf" and v.ndim == 1:
+                sizes.add(len(v))
+                continue
+            if not (isinstance(v, (list, tuple, np.ndarray)) and all(_is_number(x) for x in v)):
+                raise SceneError(f"{label}: {what} vertex {k} is {v!r}; each vertex must be a pair [x, y] of numbers")
+            sizes.add(len(v))
+        if len(sizes) > 1:  # ragged: name the first vertex that is not a pair
+            k = next(k for k, v in enumerate(a) if len(v) != 2)
+            raise SceneError(f"{label}: {what} vertex {k} is {a[k]!r}; each vertex must be a pair [x, y] of numbers")
     try:
         arr = np.asarray(a, dtype=float)
     except (TypeError, ValueError) as err:
@@ -42,6 +63,8 @@ def check_component(reference: Any, deformed: Any, closed: bool, name: str) -> t
     A closed component whose first vertex is repeated at the end (in both
     arrays) has the repeated vertex dropped.
     """
+    if not isinstance(name, str):
+        raise SceneError(f"a component's name must be a string, got {name!r}")
     label = _label(name)
     if not isinstance(closed, (bool, np.bool_)):
         raise SceneError(f"{label}: 'closed' must be true or false, got {closed!r}")
@@ -59,14 +82,21 @@ def check_component(reference: Any, deformed: Any, closed: bool, name: str) -> t
         kind = "a closed" if closed else "an open"
         raise SceneError(f"{label}: {kind} component needs at least {need} vertices, got {len(ref)}")
     ring = np.vstack([ref, ref[:1]]) if closed else ref
-    seg = np.linalg.norm(np.diff(ring, axis=0), axis=1)
-    zero = np.flatnonzero(seg == 0)
+    d = np.diff(ring, axis=0)
+    zero = np.flatnonzero(np.hypot(d[:, 0], d[:, 1]) == 0)
     if zero.size:
         k = int(zero[0])
         k2 = (k + 1) % len(ref)
         raise SceneError(
             f"{label}: reference vertices {k} and {k2} coincide at {ref[k].tolist()}; "
             "remove the repeated vertex (a zero-length reference segment has no parameter)"
+        )
+    tiny = np.flatnonzero(np.linalg.norm(d, axis=1) == 0)  # apart, but the squared length underflows
+    if tiny.size:
+        k = int(tiny[0])
+        raise SceneError(
+            f"{label}: reference vertices {k} and {(k + 1) % len(ref)} are {float(np.hypot(*d[k])):.3g} apart, too "
+            "close for floating point; rescale the reference (J^G does not depend on its scale) or merge them"
         )
     return ref, dfm
 
@@ -134,6 +164,14 @@ def check_scene(scene) -> None:
         )
 
 
+def _free_name(name: str, items: list) -> str:
+    """``name``, primed until no component of the file is called so (a default name for an unnamed one)."""
+    taken = {item.get("name") for item in items if isinstance(item, dict)}
+    while name in taken:
+        name += "'"
+    return name
+
+
 def parse_scene_dict(data: Any) -> list[dict[str, Any]]:
     """Check the JSON structure of a scene; return the keyword arguments of each component."""
     if not isinstance(data, dict) or "components" not in data:
@@ -154,7 +192,7 @@ def parse_scene_dict(data: Any) -> list[dict[str, Any]]:
                 f"component {k} ({item.get('name', 'unnamed')!r}) has unknown key(s) {sorted(unknown)}; "
                 f"allowed: {sorted(_KEYS)}"
             )
-        name = item.get("name", f"C{k}")
+        name = item["name"] if "name" in item else _free_name(f"C{k}", items)
         if not isinstance(name, str):
             raise SceneFileError(f"component {k}: 'name' must be a string, got {name!r}")
         out.append(

@@ -86,7 +86,7 @@ import numpy as np
 from threadpoolctl import ThreadpoolController
 
 from .crossings import Crossing, find_crossings
-from .errors import DegenerateMetricWarning, DirectError, ToleranceWarning
+from .errors import DegenerateMetricWarning, DirectError, SceneError, ToleranceWarning
 from .geodesics import Backend, closed_curve_bounds, closed_curve_distances, grid_distances, torus_distances
 from .grid import Domain, build_graph
 from .matching import solve as solve_assignment
@@ -327,13 +327,24 @@ def _period(domain: Domain, level: float) -> int:
     kind = domain.kind
     if kind == "annulus":
         # near the diagonal r(s) ~ -v phi'(s): the turning number (Remark 10)
-        return turning_number(ci.deformed) - turning_number(ci.reference)
+        return turning_number(ci.deformed, _polyline(ci, "deformed")) - turning_number(ci.reference,
+                                                                                         _polyline(ci, "reference"))
     if kind == "torus" or domain.comps[0].closed:
         # s runs along circle i, x2 = level on component j
         p, q = cj.phi(level), cj.j(level)
-        return winding_number(ci.deformed, p) - winding_number(ci.reference, q)
+        return (winding_number(ci.deformed, p, _polyline(ci, "deformed", cj, level))
+                - winding_number(ci.reference, q, _polyline(ci, "reference", cj, level)))
     p, q = ci.phi(level), ci.j(level)  # s runs along circle j, x1 = level on interval i
-    return winding_number(cj.deformed, p) - winding_number(cj.reference, q)
+    return (winding_number(cj.deformed, p, _polyline(cj, "deformed", ci, level))
+            - winding_number(cj.reference, q, _polyline(cj, "reference", ci, level)))
+
+
+def _polyline(comp, which: str, other=None, level: float | None = None) -> str:
+    """How error messages of :mod:`direct.topology` name a polyline (and the point of another component)."""
+    out = f"the {which} polyline of component {comp.name!r}"
+    if other is not None:
+        out += f" (the point is component {other.name!r} at reference arclength {level:.6g})"
+    return out
 
 
 def _free_level(values: np.ndarray, period: float | None, length: float) -> float:
@@ -385,8 +396,10 @@ def boundary_conditions(domain: Domain) -> dict[str, Any]:
     s0 = _free_level(st[:, 0], S, S)
     v0 = _free_level(st[:, 1], V, V)
     ci, cj = domain.comps
-    k1 = winding_number(cj.deformed, ci.phi(s0)) - winding_number(cj.reference, ci.j(s0))
-    k2 = -(winding_number(ci.deformed, cj.phi(v0)) - winding_number(ci.reference, cj.j(v0)))
+    k1 = (winding_number(cj.deformed, ci.phi(s0), _polyline(cj, "deformed", ci, s0))
+          - winding_number(cj.reference, ci.j(s0), _polyline(cj, "reference", ci, s0)))
+    k2 = -(winding_number(ci.deformed, cj.phi(v0), _polyline(ci, "deformed", cj, v0))
+           - winding_number(ci.reference, cj.j(v0), _polyline(ci, "reference", cj, v0)))
     return {"winds": (int(k1), int(k2))}
 
 
@@ -963,6 +976,42 @@ def _one_blas_thread():
     return _THREADPOOLS.limit(limits=1, user_api="blas")
 
 
+#: the range of ``log10(extent ** (order + 1))`` (deformed extent in length units, ``order`` the metric's power of
+#: ``|r|``): the scale of the lengths, within which they neither overflow nor lose their digits to underflow
+_SCALE_RANGE = (-250.0, 250.0)
+
+
+def _check_scale(scene: Scene, met) -> None:
+    """Refuse a scene whose lengths would overflow or underflow in floating point (see ``_SCALE_RANGE``).
+
+    ``J^G`` scales as the cube of the deformed scene's size: a scene 1e110
+    across overflowed, and one 1e-110 across would underflow to ``J = 0``.
+    """
+    pts = np.vstack([np.asarray(c.deformed, dtype=float) for c in scene.components])
+    extent = float(np.ptp(pts, axis=0).max()) if len(pts) else 0.0
+    if not extent > 0.0:
+        return
+    degree = float(met.order) + 1.0
+    size = degree * np.log10(extent)
+    lo, hi = _SCALE_RANGE
+    if not lo <= size <= hi:
+        raise SceneError(
+            f"the deformed scene is {extent:.3g} across: lengths of the metric {met.name} (of degree {degree:g} in "
+            f"the size) would {'overflow' if size > hi else 'underflow'} in floating point. Rescale the deformed "
+            "coordinates (J^G scales as the cube of the scale; the reference does not matter for G)."
+        )
+    for comp in scene.components:  # |phi'| enters squared: deformed over reference lengths within 1e+-100
+        speed = np.linalg.norm(comp.velocities, axis=1)
+        bad = np.flatnonzero((speed > 0) & ((speed > 1e100) | (speed < 1e-100)))
+        if bad.size:
+            k = int(bad[0])
+            raise SceneError(
+                f"component {comp.name!r}, segment {k} (vertices {k} and {(k + 1) % comp.n_vertices}): its deformed "
+                f"length is {speed[k]:.3g} times its reference length, beyond what floating point can square. "
+                "Rescale the reference or the deformation (J^G does not depend on the reference's scale)."
+            )
+
+
 def _penalty(scene, metric, power, tol, resolution, neighbours, backend, refine, second_pass, coarsen) -> Penalty:
     t0 = time.perf_counter()
     scene = resolve(scene)
@@ -984,6 +1033,7 @@ def _penalty(scene, metric, power, tol, resolution, neighbours, backend, refine,
                     refine=bool(refine), second_pass=bool(second_pass and refine))
     # without the full second pass, the chosen curves are checked against the routes of a second grid
     settings["route_check"] = bool(refine and allow_second and not settings["second_pass"])
+    _check_scale(scene, met)
     crossings = find_crossings(scene)
     names = [c.name for c in scene.components]
     total = grid_total = err_total = 0.0
@@ -1038,9 +1088,10 @@ def _penalty(scene, metric, power, tol, resolution, neighbours, backend, refine,
             DegenerateMetricWarning,
             stacklevel=3,
         )
-    elif refine and total > 0 and err_total > tol * total:
+    elif refine and err_total > tol * max(total, 0.0):  # J = 0 with a positive estimate: no relative accuracy
+        relative = f"{err_total / total:.1e} relative" if total > 0 else "J = 0 with a positive estimate"
         warnings.warn(
-            f"J = {total:.7g} has an error estimate of {err_total:.2g} ({err_total / total:.1e} relative), above the "
+            f"J = {total:.7g} has an error estimate of {err_total:.2g} ({relative}), above the "
             f"requested tol={tol:g}: the refinement found geodesics that settle apart from different starts (a "
             "geodesic along a crease of the metric, or a grazing crossing) or did not converge within its "
             "levels. Read the value with its error_estimate"

@@ -1406,7 +1406,8 @@ def refine_many(
                 # three levels at least: the change between the first two is often not yet in the asymptotic
                 # range (measured: 3.8e-3 off at tol 1e-3 after two), and the third checks it through the ratio
                 if (estimate <= max(tol * abs(h[-1]), atol) and len(h) >= 3) or n >= max_segments:
-                    c.result = RefinedPath(c.X, h[-1] - diff / 3.0, Ln, estimate, len(c.X) - 1)
+                    # the extrapolation stays within [0, Ln]: Ln is the exact length of a curve of the class
+                    c.result = RefinedPath(c.X, min(max(h[-1] - diff / 3.0, 0.0), Ln), Ln, estimate, len(c.X) - 1)
                     continue
             elif Ln == 0.0:
                 c.result = RefinedPath(c.X, 0.0, 0.0, 0.0, len(c.X) - 1)

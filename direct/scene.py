@@ -212,11 +212,16 @@ class Scene:
         from .checks import check_scene
 
         comps = []
+        taken = {getattr(c, "name", "") for c in self.components}
         for k, c in enumerate(self.components):
             if not isinstance(c, Component):
                 raise SceneError(f"component {k} is a {type(c).__name__}, not a direct.Component")
-            if not c.name:
-                c = Component(c.reference, c.deformed, c.closed, f"C{k}")
+            if not c.name:  # "C<k>", or with a suffix when the user gave another component that name
+                name = f"C{k}"
+                while name in taken:
+                    name += "'"
+                taken.add(name)
+                c = Component(c.reference, c.deformed, c.closed, name)
             comps.append(c)
         object.__setattr__(self, "components", tuple(comps))
         check_scene(self)
@@ -277,14 +282,20 @@ def load_scene(path: str | os.PathLike) -> Scene:
         If the geometry is invalid.
     """
     try:
-        with open(path, encoding="utf-8") as fh:
+        with open(path, encoding="utf-8-sig") as fh:  # a byte-order mark, which some editors write, is skipped
             text = fh.read()
     except OSError as err:
         raise SceneFileError(f"cannot read scene file {os.fspath(path)!r}: {err.strerror}") from err
+    except UnicodeDecodeError as err:
+        raise SceneFileError(
+            f"scene file {os.fspath(path)!r} is not UTF-8 text (byte {err.start}: {err.reason}); save it as UTF-8 JSON"
+        ) from err
     try:
         data = json.loads(text)
     except json.JSONDecodeError as err:
         raise SceneFileError(
             f"scene file {os.fspath(path)!r} is not valid JSON (line {err.lineno}, column {err.colno}: {err.msg})"
         ) from err
+    except RecursionError as err:
+        raise SceneFileError(f"scene file {os.fspath(path)!r} nests its JSON too deeply to be a scene") from err
     return Scene.from_dict(data, name=os.path.splitext(os.path.basename(os.fspath(path)))[0])

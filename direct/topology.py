@@ -29,13 +29,15 @@ __all__ = ["turning_number", "winding_number"]
 _U = np.array(_CROSSINGS_U)
 
 
-def turning_number(vertices: np.ndarray) -> int:
+def turning_number(vertices: np.ndarray, label: str = "the closed polyline") -> int:
     """Turning number of a closed polyline: total signed exterior angle over ``2 pi`` (Remark 10).
 
     Parameters
     ----------
     vertices : (n, 2) array_like of float
         The vertices of the closed polyline, each once (the last is joined to the first).
+    label : str, optional
+        What the polyline is, for error messages (``"the deformed polyline of component 'A'"``).
 
     Returns
     -------
@@ -54,7 +56,10 @@ def turning_number(vertices: np.ndarray) -> int:
     e = np.roll(v, -1, axis=0) - v
     e = e[np.hypot(e[:, 0], e[:, 1]) > 0]
     if len(e) < 2:
-        raise DegenerateError("the closed polyline has fewer than two segments of positive length: no turning number")
+        raise DegenerateError(
+            f"{label} has fewer than two segments of positive length: no turning number; give it at least two "
+            "distinct vertices"
+        )
     e_next = np.roll(e, -1, axis=0)
     cross = e[:, 0] * e_next[:, 1] - e[:, 1] * e_next[:, 0]
     dot = (e * e_next).sum(axis=1)
@@ -71,7 +76,7 @@ def turning_number(vertices: np.ndarray) -> int:
     return k
 
 
-def winding_number(vertices: np.ndarray, point: np.ndarray) -> int:
+def winding_number(vertices: np.ndarray, point: np.ndarray, label: str = "the closed polyline") -> int:
     """Winding number of a closed polyline around a point.
 
     Parameters
@@ -80,6 +85,8 @@ def winding_number(vertices: np.ndarray, point: np.ndarray) -> int:
         The closed polyline (last vertex joined to the first).
     point : (2,) array_like of float
         A point not on the polyline.
+    label : str, optional
+        What the polyline is, for error messages.
 
     Returns
     -------
@@ -105,8 +112,9 @@ def winding_number(vertices: np.ndarray, point: np.ndarray) -> int:
     if on.any():
         k = int(np.flatnonzero(on)[0])
         raise DegenerateError(
-            f"the point {np.asarray(point).tolist()} lies on segment {k} of the closed polyline: "
-            "its winding number is not defined"
+            f"the point {np.asarray(point).tolist()} lies on segment {k} (vertices {k} and {(k + 1) % len(v)}) of "
+            f"{label}: its winding number is not defined; the curves overlap there: move a vertex off the other "
+            "curve"
         )
     total = np.arctan2(cross, dot).sum() / (2 * np.pi)
     return int(np.rint(total))

@@ -121,6 +121,21 @@ def test_rigid_motion_of_a_circle_scene():
     assert direct.penalty(moved).value == pytest.approx(direct.penalty(sc).value, rel=RTOL)
 
 
+@pytest.mark.parametrize("scale", [1e-3, 1e-6])
+def test_small_circle_scenes_keep_their_curves(scale):
+    """``J^G`` scales as the cube of the deformation: on a scene 1e-3 across, HiGHS's absolute tolerances
+    took any feasible choice (the bow twice its value, two polygons 8 times theirs) until the costs were scaled."""
+    t = np.linspace(0, 2 * np.pi, 4, endpoint=False)
+    bow = direct.Scene((direct.Component(np.column_stack([np.cos(t), np.sin(t)]),
+                                         [[0, 0], [1, 1], [1, 0], [0, 1]], closed=True, name="bow"),))
+    for sc in (bow, polygon_pair(16, 1.0)):
+        base = direct.penalty(sc)
+        small = direct.penalty(rigid(sc, 0.0, (0.0, 0.0), scale=scale))
+        assert small.value / scale**3 == pytest.approx(base.value, abs=base.error_estimate + small.error_estimate
+                                                       / scale**3 + 1e-12 * base.value)
+        assert len(small.pairs) == len(base.pairs)
+
+
 def test_nested_circles_need_a_closed_curve():
     """Section 3.3.4: no crossing, but the small circle jumped inside the big one."""
     sc = direct.scenes.get("nested")

@@ -114,6 +114,10 @@ BAD_FILES = {
     "missing deformed": json.dumps({"components": [{"name": "A", "reference": [[0, 0], [1, 0]]}]}),
     "NaN coordinate": json.dumps(_scene([[0, 2], [1, 2]], [[0, -0.5], [float("nan"), 0.5]])),
     "mismatched counts": json.dumps(_scene([[0, 2], [1, 2], [2, 2]], [[0, -0.5], [0, 0.5]])),
+    "string coordinates": json.dumps(_scene([["0", "2"], ["1", "2"]], [[0, -0.5], [0, 0.5]])),
+    "boolean coordinates": json.dumps(_scene([[0, 2], [True, False]], [[0, -0.5], [0, 0.5]])),
+    "ragged vertex": json.dumps(_scene([[0, 2], [1]], [[0, -0.5], [0, 0.5]])),
+    "deeply nested": "[" * 100_000 + "]" * 100_000,
 }
 
 
@@ -179,3 +183,20 @@ def test_plot_to_missing_folder(tmp_path, capsys):
     captured = capsys.readouterr()
     assert captured.out == ""
     assert_one_line_error(captured.err, code)
+
+
+def test_scene_file_not_utf8(tmp_path, capsys):
+    path = tmp_path / "latin.json"
+    path.write_bytes(b"\xff\xfe" + json.dumps(_scene([[0, 2], [1, 2]], [[0, -0.5], [0, 0.5]])).encode())
+    code = main(["penalty", str(path)])
+    captured = capsys.readouterr()
+    assert_one_line_error(captured.err, code)
+    assert "not UTF-8" in captured.err
+
+
+def test_scene_file_with_byte_order_mark_is_read(tmp_path):
+    text = json.dumps(_scene([[0, 2], [1, 2]], [[0, -0.5], [0, 0.5]]))
+    plain, marked = tmp_path / "plain.json", tmp_path / "marked.json"
+    plain.write_text(text, encoding="utf-8")
+    marked.write_text(text, encoding="utf-8-sig")
+    assert direct.load_scene(marked).to_dict() == direct.load_scene(plain).to_dict()

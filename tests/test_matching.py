@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 import direct
 from direct.geodesics import grid_distances
 from direct.grid import build_graph
-from direct.matching import brute_force, solve, solve_flow
+from direct.matching import brute_force, solve, solve_flow, solve_torus
 from direct.metric import get_metric
 from direct.penalty import domains
 
@@ -65,3 +65,41 @@ def test_assignment_equals_enumeration_on_grid_distances(seed):
         supply[neg], supply[pos] = 1, -1
         supply[0] = -supply.sum()
         assert solve_flow(T, supply)[0] == pytest.approx(value, rel=1e-9)
+
+
+@settings(max_examples=60, deadline=None)
+@given(cost_tables(), st.sampled_from([1e-12, 1e-6, 1.0, 1e6, 1e12]))
+def test_flow_is_program_34_at_every_scale(tables, scale):
+    """HiGHS's tolerances are absolute: costs scaled by 1e-6 made every feasible flow look optimal (_two_stage)."""
+    A, a0, b0 = tables
+    npos, nneg = len(a0), len(b0)
+    n = 1 + nneg + npos  # the boundary, the negative points (which emit), the positive ones (which receive)
+    C = np.full((n, n), np.inf)
+    np.fill_diagonal(C, 0.0)
+    C[1:1 + nneg, 1 + nneg:] = A.T
+    C[0, 1 + nneg:] = a0
+    C[1:1 + nneg, 0] = b0
+    supply = np.concatenate([[npos - nneg], np.ones(nneg, dtype=int), -np.ones(npos, dtype=int)])
+    value, arcs = solve_flow(scale * C, supply)
+    assert value == pytest.approx(scale * solve(A, a0, b0)[0], rel=1e-12, abs=1e-300)
+    assert sum(k * scale * C[u, v] for u, v, k in arcs) == pytest.approx(value, rel=1e-12, abs=1e-300)
+
+
+@pytest.mark.parametrize("scale", [1e-12, 1e-6, 1.0, 1e6])
+def test_flow_docstring_example_at_every_scale(scale):
+    C = np.array([[0, 0.2, 0.4], [0.2, 0, 0.7], [0.4, 0.7, 0]])
+    value, arcs = solve_flow(scale * C, [0, 1, -1])
+    assert value == pytest.approx(0.6 * scale, rel=1e-12)
+    assert sorted(arcs) == [(0, 2, 1), (1, 0, 1)]
+
+
+@pytest.mark.parametrize("scale", [1e-12, 1e-6, 1.0, 1e6])
+def test_torus_program_at_every_scale(scale):
+    """Two pairs on a torus: the cheap pairing in class (0, 0), against a dear one and closed curves."""
+    cost = {(0, 0, (0, 0)): 1.0, (1, 1, (0, 0)): 2.0, (0, 1, (0, 0)): 50.0, (1, 0, (0, 0)): 60.0,
+            (0, 0, (1, 0)): 7.0, (1, 1, (1, 0)): 9.0}
+    closed = {(1, 0): 4.0, (0, 1): 5.0, (-1, 0): 4.5}
+    for winds, expected in (((0, 0), 3.0), ((1, 0), 7.0), ((0, 1), 8.0)):
+        value, chosen = solve_torus({k: scale * c for k, c in cost.items()}, {k: scale * c for k, c in closed.items()},
+                                    2, 2, winds)
+        assert value == pytest.approx(scale * expected, rel=1e-12), winds

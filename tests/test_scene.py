@@ -135,3 +135,30 @@ def test_errors_are_one_family():
     for cls in (direct.SceneError, direct.SceneFileError, direct.DegenerateError, direct.NotSupportedError,
                 direct.ConvergenceError):
         assert issubclass(cls, direct.DirectError)
+
+
+@pytest.mark.parametrize("vertices,bad", [([["0", "0"], ["1", "0"]], 0), ([[0, 0], [True, False]], 1),
+                                          ([[0, 0], None], 1), ([[0, 0], [1]], 1), ([[0, 0], [None, 1]], 1)])
+def test_vertices_must_be_pairs_of_numbers(vertices, bad):
+    """numpy would read strings and booleans as numbers; each is refused with the vertex at fault."""
+    with pytest.raises(direct.SceneError, match=rf"component 'A': reference vertex {bad} is .* pair \[x, y\]"):
+        direct.Component(vertices, [[0, 0], [1, 1]], name="A")
+
+
+def test_component_name_must_be_a_string():
+    with pytest.raises(direct.SceneError, match="name must be a string"):
+        direct.Component([[0, 0], [1, 0]], [[0, 0], [1, 0]], name=5)
+
+
+def test_default_names_avoid_the_given_ones():
+    a = direct.Component([[0, 0], [1, 0]], [[0, 0], [1, 0]], name="C1")
+    b = direct.Component([[0, 1], [1, 1]], [[0, 1], [1, 1]])
+    assert [c.name for c in direct.Scene((a, b)).components] == ["C1", "C1'"]
+    data = {"components": [{"name": "C1", "reference": [[0, 0], [1, 0]], "deformed": [[0, 0], [1, 0]]},
+                           {"reference": [[0, 1], [1, 1]], "deformed": [[0, 1], [1, 1]]}]}
+    assert [c.name for c in direct.Scene.from_dict(data).components] == ["C1", "C1'"]
+
+
+def test_reference_vertices_too_close_for_floating_point():
+    with pytest.raises(direct.SceneError, match=r"reference vertices 0 and 1 are 1e-170 apart"):
+        direct.Component([[0, 0], [1e-170, 0], [1, 0]], [[0, 0], [1, 0], [2, 0]], name="A")
