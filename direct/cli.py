@@ -301,6 +301,11 @@ def _cmd_plot(args: argparse.Namespace) -> int:
     folder = os.path.dirname(os.path.abspath(args.output))
     if not os.path.isdir(folder):  # fail before the computation, not after
         raise DirectError(f"cannot write the figure to {args.output!r}: no folder {folder!r}")
+    if os.path.isdir(args.output):
+        raise DirectError(f"cannot write the figure to {args.output!r}: it is a folder; give a file name such as "
+                          f"{os.path.join(args.output, 'figure.png')!r}")
+    # matplotlib adds its default format's extension to a name without one: print the file actually written
+    written = args.output if os.path.splitext(args.output)[1] else args.output + "." + plt.rcParams["savefig.format"]
     scene, result = _compute(args)
     fig = plot_penalty(result, scene)
     try:
@@ -309,7 +314,7 @@ def _cmd_plot(args: argparse.Namespace) -> int:
         raise DirectError(f"cannot write the figure to {args.output!r}: {err}") from err
     finally:
         plt.close(fig)
-    print(args.output)
+    print(written)
     return 0
 
 

@@ -228,7 +228,27 @@ def plot_scene(scene, crossings=None, ax=None) -> list[Any]:
 
 
 def _index(scene, c) -> int:
-    return c if isinstance(c, (int, np.integer)) else scene.index(c)
+    """Index of component ``c`` (an index or a name) in ``scene``."""
+    from .errors import SceneError
+
+    if isinstance(c, str):
+        return scene.index(c)
+    if isinstance(c, (int, np.integer)) and not isinstance(c, bool) and 0 <= c < len(scene.components):
+        return int(c)
+    raise SceneError(f"no component {c!r}: give an index from 0 to {len(scene.components) - 1} or one of the names "
+                     f"{[comp.name for comp in scene.components]}")
+
+
+def _check_result(result, scene) -> None:
+    """Refuse a result computed on another scene (its components' names not all in ``scene``)."""
+    from .errors import SceneError
+
+    names = {c.name for c in scene.components}
+    used = {name for p in result.pairs for name in p.components}
+    crossing_ids = {int(v) for c in result.crossings for v in c.components}
+    if not used <= names or (crossing_ids and max(crossing_ids) >= len(scene.components)):
+        raise SceneError(f"this result does not belong to scene {scene.name or '(unnamed)'!r}: its curves run on "
+                         f"components {sorted(used)}, the scene has {sorted(names)}; pass the scene it was computed on")
 
 
 def _kind(ci, cj, same: bool) -> str:
@@ -327,6 +347,11 @@ def plot_domain(result, scene, pair=(0, 1), ax=None, background: bool = True) ->
     from matplotlib.patches import Polygon
 
     scene = _resolve(scene)
+    _check_result(result, scene)
+    if not isinstance(pair, (tuple, list)) or len(pair) != 2:
+        from .errors import SceneError
+
+        raise SceneError(f"pair must name two components (i, j), got {pair!r}")
     ax = _axes(ax)
     i, j = (_index(scene, c) for c in pair)
     ci, cj = scene.components[i], scene.components[j]
@@ -539,6 +564,7 @@ def plot_penalty(result, scene, path: str | os.PathLike | None = None):
     import matplotlib.pyplot as plt
 
     scene = _resolve(scene)
+    _check_result(result, scene)
     index = {c.name: k for k, c in enumerate(scene.components)}
     pairs = sorted(
         {tuple(sorted(int(v) for v in c.components)) for c in result.crossings}

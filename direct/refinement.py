@@ -1347,7 +1347,9 @@ def refine_many(
     Returns
     -------
     list of RefinedPath
-        One per job, in order.  ``length`` is Richardson-extrapolated;
+        One per job, in order.  ``length`` is Richardson-extrapolated, kept
+        between 0 and ``upper`` (the exact length of the last polyline, a curve
+        of the class, so at least the least length);
         ``error_estimate`` is the whole last change between levels, at least
         a quarter of the change before it, at least the geometric tail
         ``c r / (1 - r)`` of the changes when the last one ``c`` is more

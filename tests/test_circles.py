@@ -433,7 +433,8 @@ def test_closed_curves_are_searched_only_when_the_program_picks_one(monkeypatch,
     from the start (bit for bit), the grid's own value too, and with ``refine=False`` (the grid's family: a
     closed curve picked at its bound used to reach the output unsearched). Two polygons pushed apart by their
     crossings (no closed curve can compete) never search; pushed deep into each other, closed curves compete
-    at their bounds (searched or not, they lose); ``nested`` needs one."""
+    at their bounds (searched or not, they lose); ``nested`` needs one. One grid (``second_pass=False``: below
+    the default resolution a second pass would search its own grid's seams)."""
     import sys
 
     P = sys.modules["direct.penalty"]
@@ -445,13 +446,13 @@ def test_closed_curves_are_searched_only_when_the_program_picks_one(monkeypatch,
         return inner(graph, *args, **kwargs)
 
     monkeypatch.setattr(P, "closed_curve_distances", spy)
-    lazy = direct.penalty(scene, resolution=resolution)
+    lazy = direct.penalty(scene, resolution=resolution, second_pass=False)
     assert searched_any is None or bool(searched) == searched_any
     assert len(set(searched)) == len(searched)  # each seam at most once
     lazy_grid = direct.penalty(scene, resolution=resolution, refine=False)
     # the bounds replaced by the grid lengths themselves: every closed curve searched up front
     monkeypatch.setattr(P, "closed_curve_bounds", lambda graph: {c: f[0][0] for c, f in inner(graph).items()})
-    eager = direct.penalty(scene, resolution=resolution)
+    eager = direct.penalty(scene, resolution=resolution, second_pass=False)
     eager_grid = direct.penalty(scene, resolution=resolution, refine=False)
     for a, b in ((lazy, eager), (lazy_grid, eager_grid)):
         # bit for bit (the grid's family has no estimate: NaN on both sides)

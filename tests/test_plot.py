@@ -15,7 +15,6 @@ from direct.plot import plot_domain, plot_penalty, plot_scene  # noqa: E402
 @pytest.fixture(autouse=True)
 def close_figures():
     yield
-    plt.close("all")
 
 
 @pytest.fixture(scope="module")
@@ -89,3 +88,25 @@ def test_plot_penalty_circle_without_crossings():
     for ax in fig.axes[1:]:
         labels = [t.get_text() for t in ax.get_legend().get_texts()]
         assert "seam (sides identified)" in labels  # the circle's two sides are identified
+
+
+@pytest.mark.parametrize("pair", [(0, 5), (-1, 0), (True, 0), ("A",), ("I1", "nope")])
+def test_plot_domain_refuses_a_pair_the_scene_does_not_have(pair):
+    res = direct.penalty("fig2", refine=False)
+    with pytest.raises(direct.SceneError):
+        plot_domain(res, "fig2", pair)
+
+
+def test_plot_refuses_a_result_of_another_scene():
+    with pytest.raises(direct.SceneError, match="does not belong to scene 'loop'"):
+        plot_penalty(direct.penalty("fig2", refine=False), "loop")
+
+
+def test_plot_command_prints_the_file_it_wrote(tmp_path, capsys):
+    from direct.cli import main
+
+    assert main(["plot", "cross", "-o", str(tmp_path / "noext")]) == 0
+    assert capsys.readouterr().out.strip() == str(tmp_path / "noext.png")
+    assert (tmp_path / "noext.png").is_file()
+    assert main(["plot", "cross", "-o", str(tmp_path)]) == 2
+    assert "it is a folder" in capsys.readouterr().err
