@@ -7,6 +7,7 @@ fault and says what to do.
 
 from __future__ import annotations
 
+import numbers
 from typing import Any
 
 import numpy as np
@@ -21,27 +22,40 @@ def _label(name: str) -> str:
 
 
 def _is_number(x: Any) -> bool:
-    """A real number, not a bool or a string (which numpy would convert)."""
-    return isinstance(x, (int, float, np.integer, np.floating)) and not isinstance(x, (bool, np.bool_))
+    """A real number (int, float, Fraction, numpy scalar, 0-d array), not a bool or a string."""
+    if isinstance(x, (bool, np.bool_, str, bytes)):
+        return False
+    return isinstance(x, numbers.Real) or (isinstance(x, np.ndarray) and x.ndim == 0 and x.dtype.kind in "iuf")
+
+
+def _check_vertex_list(a: Any, what: str, label: str) -> None:
+    """Each vertex a pair of numbers (strings and booleans, which numpy would convert, refused), by index."""
+    if not isinstance(a, (list, tuple, np.ndarray)):
+        raise SceneError(f"{label}: {what} vertices must be a list of [x, y] pairs, got {type(a).__name__}")
+    if not isinstance(a, np.ndarray):
+        arr = np.asarray(a, dtype=object) if len(a) else np.empty((0, 2))
+        if arr.ndim == 2 and arr.shape[1] == 2:  # a regular list: one pass over its entries, in C where it can
+            flat = arr.ravel()
+            if set(map(type, flat.tolist())) <= {float, int}:  # type(True) is bool: booleans fall through
+                return
+    sizes = set()
+    for k, v in enumerate(a):
+        if isinstance(v, np.ndarray) and v.dtype.kind in "iuf" and v.ndim == 1:
+            sizes.add(len(v))
+            continue
+        if not (isinstance(v, (list, tuple, np.ndarray)) and all(_is_number(x) for x in v)):
+            raise SceneError(f"{label}: {what} vertex {k} is {v!r}; each vertex must be a pair [x, y] of numbers")
+        sizes.add(len(v))
+    if len(sizes) > 1:  # ragged: name the first vertex that is not a pair
+        k = next(k for k, v in enumerate(a) if len(v) != 2)
+        raise SceneError(f"{label}: {what} vertex {k} is {a[k]!r}; each vertex must be a pair [x, y] of numbers")
 
 
 def _as_vertices(a: Any, what: str, label: str) -> np.ndarray:
     if isinstance(a, np.ndarray) and a.dtype.kind not in "iuf" and a.dtype != object:
         raise SceneError(f"{label}: {what} vertices must be numbers, got an array of {a.dtype}")
     if not isinstance(a, np.ndarray) or a.dtype == object:
-        if not isinstance(a, (list, tuple, np.ndarray)):
-            raise SceneError(f"{label}: {what} vertices must be a list of [x, y] pairs, got {type(a).__name__}")
-        sizes = set()
-        for k, v in enumerate(a):
-            if isinstance(v, np.ndarray) and v.dtype.kind in "iuf" and v.ndim == 1:
-                sizes.add(len(v))
-                continue
-            if not (isinstance(v, (list, tuple, np.ndarray)) and all(_is_number(x) for x in v)):
-                raise SceneError(f"{label}: {what} vertex {k} is {v!r}; each vertex must be a pair [x, y] of numbers")
-            sizes.add(len(v))
-        if len(sizes) > 1:  # ragged: name the first vertex that is not a pair
-            k = next(k for k, v in enumerate(a) if len(v) != 2)
-            raise SceneError(f"{label}: {what} vertex {k} is {a[k]!r}; each vertex must be a pair [x, y] of numbers")
+        _check_vertex_list(a, what, label)
     try:
         arr = np.asarray(a, dtype=float)
     except (TypeError, ValueError) as err:
@@ -63,6 +77,8 @@ def check_component(reference: Any, deformed: Any, closed: bool, name: str) -> t
     A closed component whose first vertex is repeated at the end (in both
     arrays) has the repeated vertex dropped.
     """
+    if name is None:
+        name = ""
     if not isinstance(name, str):
         raise SceneError(f"a component's name must be a string, got {name!r}")
     label = _label(name)

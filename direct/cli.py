@@ -65,7 +65,8 @@ def _add_method_options(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--second-pass", choices=["auto", "on", "off"], default="auto",
         help="solve again from a second grid's routes and add the spread to the error estimate "
-        "(auto: when tol <= 1e-4; above, only the chosen curves are checked against the second grid's routes; "
+        "(auto: when tol <= 1e-4 or the resolution is below 128; otherwise only the chosen curves are checked against "
+        "the second grid's routes; "
         "off: neither)",
     )
 
@@ -305,7 +306,9 @@ def _cmd_plot(args: argparse.Namespace) -> int:
         raise DirectError(f"cannot write the figure to {args.output!r}: it is a folder; give a file name such as "
                           f"{os.path.join(args.output, 'figure.png')!r}")
     # matplotlib adds its default format's extension to a name without one: print the file actually written
-    written = args.output if os.path.splitext(args.output)[1] else args.output + "." + plt.rcParams["savefig.format"]
+    written = args.output
+    if not os.path.splitext(args.output)[1][1:]:  # as matplotlib does: "fig" and "fig." both give fig.png
+        written = args.output.rstrip(".") + "." + plt.rcParams["savefig.format"]
     scene, result = _compute(args)
     fig = plot_penalty(result, scene)
     try:

@@ -29,6 +29,8 @@ import itertools
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
+from .errors import DirectError
+
 __all__ = ["solve", "brute_force", "solve_flow", "solve_torus"]
 
 
@@ -159,8 +161,6 @@ def solve_flow(cost: np.ndarray, supply: np.ndarray) -> tuple[float, list[tuple[
     """
     from scipy.optimize import linprog
 
-    from .errors import DirectError
-
     C = np.asarray(cost, dtype=float)
     b = np.asarray(supply, dtype=float)
     n = len(b)
@@ -169,6 +169,8 @@ def solve_flow(cost: np.ndarray, supply: np.ndarray) -> tuple[float, list[tuple[
     if not np.any(b):
         return 0.0, []
     u, v = np.nonzero(~np.eye(n, dtype=bool) & np.isfinite(C))
+    if len(u) == 0:
+        raise DirectError("no family of curves meets the boundary conditions: no terminal reaches another")
     A = np.zeros((n, len(u)))
     A[u, np.arange(len(u))] = 1.0
     A[v, np.arange(len(u))] -= 1.0
@@ -213,8 +215,11 @@ def _two_stage(run, c: np.ndarray) -> np.ndarray:
     value = float(c @ x)
     if not 0.0 < value < top:
         return x
-    cols = np.flatnonzero(c <= value)
-    x2 = run(cols, value)
+    cols = np.flatnonzero(c <= value)  # feasible: x uses none of the others
+    try:
+        x2 = run(cols, value)
+    except DirectError:  # numerical trouble on the pruned program: the first solution stands
+        return x
     return x2 if float(c @ x2) < value else x
 
 
@@ -250,8 +255,6 @@ def solve_torus(
         ``key`` is ``(i, j, k)`` for a path, ``("closed", k)`` for closed curves.
     """
     from scipy.optimize import Bounds, LinearConstraint, milp
-
-    from .errors import DirectError
 
     keys = [k for k, c in cost.items() if np.isfinite(c)] + [("closed", k) for k, c in closed.items() if np.isfinite(c)]
     if not keys:

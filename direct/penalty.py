@@ -7,11 +7,12 @@ geodesics, all the curves of a domain at once (:mod:`direct.refinement`)
 -> :class:`Penalty`.
 
 The refinement settles in the local geodesic its route leads to, so the
-routes of a second grid (three quarters of the step) give second starts:
-from ``tol = 1e-4`` down a whole second solution (``second_pass``), above it
-a check of the chosen curves only (``settings["route_check"]``: each second
-route straightened at the coarse scale, refined where it is shorter than the
-refined curve).
+routes of a second grid (three quarters of the step from the default 128
+cells up, the default grid below it: :func:`second_resolution`) give second
+starts: from ``tol = 1e-4`` down, and below the default resolution, a whole
+second solution (``second_pass``), otherwise a check of the chosen curves
+only (``settings["route_check"]``: each second route straightened at the
+coarse scale, refined where it is shorter than the refined curve).
 
 Convention: ``value`` is ``J`` over the whole of ``M x M`` as in eq. (34):
 each geometric crossing ``phi(x1) = phi(x2)`` gives the two signed points
@@ -97,7 +98,7 @@ from .scene import Scene
 from .scenes import resolve
 from .topology import turning_number, winding_number
 
-__all__ = ["penalty", "Penalty", "Pair"]
+__all__ = ["penalty", "Penalty", "Pair", "second_resolution"]
 
 #: searches from a crossing point stop at this factor times (its distance to the boundary + the largest one):
 #: a curve between two points longer than sending both to the boundary is never used (see grid_distances);
@@ -886,7 +887,11 @@ def penalty(
         the patches around crossing points (in deformed arclength for ``G``,
         see :func:`direct.grid.build_graph`).  With
         refinement the grid only routes the geodesics and ranks them; their
-        lengths, hence the tolerance, come from the refinement.
+        lengths, hence the tolerance, come from the refinement.  But the
+        routes decide which points are joined and which local geodesic each
+        curve settles in, which the estimate does not measure: below the
+        default the second pass runs on the default grid as well
+        (``second_pass``), so a coarser grid saves no time.
     neighbours : {8, 16, 32}, default 16
         Grid stencil.
     coarsen : int, default 4
@@ -1032,7 +1037,7 @@ def _check_scale(scene: Scene, met) -> None:
         raise SceneError(
             f"the deformed scene is {extent:.3g} across: lengths of the metric {met.name} (of degree {degree:g} in "
             f"the size) would {'overflow' if size > hi else 'underflow'} in floating point. Rescale the deformed "
-            "coordinates (J^G scales as the cube of the scale; the reference does not matter for G)."
+            f"coordinates (J^{met.name} scales as the power {degree:g} of the size of the deformation)."
         )
     for comp in scene.components:  # |phi'| enters squared: deformed over reference lengths within 1e+-100
         speed = np.linalg.norm(comp.velocities, axis=1)
@@ -1042,7 +1047,7 @@ def _check_scale(scene: Scene, met) -> None:
             raise SceneError(
                 f"component {comp.name!r}, segment {k} (vertices {k} and {(k + 1) % comp.n_vertices}): its deformed "
                 f"length is {speed[k]:.3g} times its reference length, beyond what floating point can square. "
-                "Rescale the reference or the deformation (J^G does not depend on the reference's scale)."
+                "Rescale the reference or the deformation (J^G does not depend on the reference's scale, J^g does)."
             )
 
 

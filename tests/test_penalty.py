@@ -133,7 +133,7 @@ def test_G_is_invariant_under_reparametrization_and_g_is_not():
         assert abs(l1 - l0) > 10 * RTOL * l0
 
 
-@settings(max_examples=4, deadline=None)
+@settings(max_examples=4, deadline=None, derandomize=True)
 @given(seed=st.integers(0, 5), steps=st.lists(st.floats(0.2, 3.0), min_size=8, max_size=8))
 def test_G_reparametrized_agrees_within_the_two_estimates(seed, steps):
     """Respaced references give J^G within both estimates.

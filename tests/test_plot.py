@@ -15,6 +15,7 @@ from direct.plot import plot_domain, plot_penalty, plot_scene  # noqa: E402
 @pytest.fixture(autouse=True)
 def close_figures():
     yield
+    plt.close("all")
 
 
 @pytest.fixture(scope="module")
@@ -108,5 +109,8 @@ def test_plot_command_prints_the_file_it_wrote(tmp_path, capsys):
     assert main(["plot", "cross", "-o", str(tmp_path / "noext")]) == 0
     assert capsys.readouterr().out.strip() == str(tmp_path / "noext.png")
     assert (tmp_path / "noext.png").is_file()
+    assert main(["plot", "cross", "-o", str(tmp_path / "dot.")]) == 0
+    assert capsys.readouterr().out.strip() == str(tmp_path / "dot.png")
+    assert (tmp_path / "dot.png").is_file()
     assert main(["plot", "cross", "-o", str(tmp_path)]) == 2
     assert "it is a folder" in capsys.readouterr().err

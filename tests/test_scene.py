@@ -145,6 +145,14 @@ def test_vertices_must_be_pairs_of_numbers(vertices, bad):
         direct.Component(vertices, [[0, 0], [1, 1]], name="A")
 
 
+def test_any_real_numbers_are_coordinates():
+    from fractions import Fraction
+
+    comp = direct.Component([[Fraction(1, 2), 0], [1, np.float64(0)]], [[0, np.array(0.0)], [1, 1]], name=None)
+    assert comp.reference[0, 0] == 0.5
+    assert direct.Scene((comp,)).components[0].name == "C0"
+
+
 def test_component_name_must_be_a_string():
     with pytest.raises(direct.SceneError, match="name must be a string"):
         direct.Component([[0, 0], [1, 0]], [[0, 0], [1, 0]], name=5)

@@ -30,7 +30,7 @@ Scenes and variants (``tol=1e-5``, the metric ``G``):
   of the step (``second_pass``): the scene is solved on grids of 128 and 96
   cells, the variant on grids of 192 and 144 (a coarser variant would share
   the default grid: below 128 cells the second grid is the default one,
-  ``direct.penalty.second_resolution``).
+  ``second_resolution`` in ``direct/penalty.py``).
 
 The two variants test different things.  For ``G`` the grid is laid in the
 deformed arclength (``tests/test_penalty.py``,
