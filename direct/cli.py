@@ -51,7 +51,8 @@ def _add_method_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--power", type=float, default=None, metavar="P", help="q of G or p of g (default 2)")
     p.add_argument("--tol", type=float, default=1e-3, help="relative tolerance of each refined geodesic (default 1e-3)")
     p.add_argument(
-        "--resolution", type=int, default=128, metavar="N", help="grid cells along the longer side of a domain (128)"
+        "--resolution", type=int, default=128, metavar="N",
+        help="grid cells along the longer side of a domain (128; below it the default grid is solved too)"
     )
     p.add_argument(
         "--coarsen", type=int, default=4, metavar="C",
