@@ -177,15 +177,10 @@ def solve_flow(cost: np.ndarray, supply: np.ndarray) -> tuple[float, list[tuple[
     c = C[u, v]
 
     def run(cols, scale):
-        res = linprog(c[cols] / scale, A_eq=A[:, cols], b_eq=b, bounds=(0, None), method="highs-ds",
-                      options=_HIGHS_LP)
-        if res.status != 0:
-            raise DirectError(f"no family of curves meets the boundary conditions ({res.message})")
-        x = np.zeros(len(c), dtype=int)
-        x[cols] = np.rint(res.x).astype(int)
-        return x
+        return linprog(c[cols] / scale, A_eq=A[:, cols], b_eq=b, bounds=(0, None), method="highs-ds",
+                       options=_HIGHS_LP)
 
-    flow = _two_stage(run, c)
+    flow = _two_stage(run, c, "no family of curves meets the boundary conditions")
     arcs = [(int(u[k]), int(v[k]), int(flow[k])) for k in np.flatnonzero(flow)]
     return float(c @ flow), arcs
 
@@ -194,30 +189,38 @@ def solve_flow(cost: np.ndarray, supply: np.ndarray) -> tuple[float, list[tuple[
 _HIGHS_LP = {"dual_feasibility_tolerance": 1e-10, "primal_feasibility_tolerance": 1e-10}
 
 
-def _two_stage(run, c: np.ndarray) -> np.ndarray:
+def _two_stage(run, c: np.ndarray, infeasible: str) -> np.ndarray:
     """Solve a linear or integer program of nonnegative costs ``c`` with HiGHS, robustly to their scale.
 
     HiGHS's tolerances are absolute: on raw costs of 1e-6 (a scene a thousand
     times smaller than the unit: ``G``'s lengths scale as the cube) every
     feasible choice looked optimal, and ``fig10`` came out twice its value
     with an estimate of 1e-12.  ``run(cols, scale)`` solves the program on
-    the columns ``cols`` with costs ``c[cols] / scale`` and returns the
-    integral solution (all columns).  The first solve scales by the largest
+    the columns ``cols`` with costs ``c[cols] / scale`` (a scipy result);
+    ``infeasible`` is the error message when it finds no solution.  The
+    result is the integral solution over all columns.  The first solve scales by the largest
     cost; its value ``V`` (exact, from ``c``) bounds the optimum, so no
     column dearer than ``V`` can be in an optimal solution (the costs are
     nonnegative), and the second solve keeps the others, scaled by ``V``:
     every tolerance is then relative to the value itself.  The better of
     the two solutions is returned.
     """
-    every = np.arange(len(c))
+    def solve(cols, scale):
+        res = run(cols, scale)
+        if res.status != 0:
+            raise DirectError(f"{infeasible} ({res.message})")
+        x = np.zeros(len(c), dtype=int)
+        x[cols] = np.rint(res.x).astype(int)
+        return x
+
     top = float(c.max()) if len(c) else 0.0
-    x = run(every, top if top > 0 else 1.0)
+    x = solve(np.arange(len(c)), top if top > 0 else 1.0)
     value = float(c @ x)
     if not 0.0 < value < top:
         return x
     cols = np.flatnonzero(c <= value)  # feasible: x uses none of the others
     try:
-        x2 = run(cols, value)
+        x2 = solve(cols, value)
     except DirectError:  # numerical trouble on the pruned program: the first solution stands
         return x
     return x2 if float(c @ x2) < value else x
@@ -277,15 +280,10 @@ def solve_torus(
     M = np.array(rows)
 
     def run(cols, scale):
-        res = milp(c[cols] / scale, constraints=LinearConstraint(M[:, cols], lo, hi),
-                   integrality=np.ones(len(cols)), bounds=Bounds(np.zeros(len(cols)), ub[cols]),
-                   options={"mip_rel_gap": 0.0})
-        if res.status != 0:
-            raise DirectError(f"no family of curves meets the conditions on the torus ({res.message})")
-        x = np.zeros(len(c), dtype=int)
-        x[cols] = np.rint(res.x).astype(int)
-        return x
+        return milp(c[cols] / scale, constraints=LinearConstraint(M[:, cols], lo, hi),
+                    integrality=np.ones(len(cols)), bounds=Bounds(np.zeros(len(cols)), ub[cols]),
+                    options={"mip_rel_gap": 0.0})
 
-    x = _two_stage(run, c)
+    x = _two_stage(run, c, "no family of curves meets the conditions on the torus")
     chosen = [(keys[k], int(x[k])) for k in np.flatnonzero(x)]
     return float(c @ x), chosen
