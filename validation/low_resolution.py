@@ -1,6 +1,6 @@
 """Grids coarser than the default: does a value stay within its estimate of the default's?
 
-Run ``python validation/low_resolution.py`` (about three minutes).  The grid
+Run ``python validation/low_resolution.py`` (about a minute).  The grid
 decides which points the curves join and which local geodesic each curve
 settles in, and the estimate measures only the refinement of that geodesic.
 Below the default resolution (128 cells) ``direct`` therefore also runs the
