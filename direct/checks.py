@@ -180,9 +180,8 @@ def check_scene(scene) -> None:
         )
 
 
-def _free_name(name: str, items: list) -> str:
-    """``name``, primed until no component of the file is called so (a default name for an unnamed one)."""
-    taken = {item.get("name") for item in items if isinstance(item, dict)}
+def free_name(name: str, taken: set) -> str:
+    """``name``, primed until it is not in ``taken``: the default name ``C<k>`` of an unnamed component."""
     while name in taken:
         name += "'"
     return name
@@ -208,7 +207,8 @@ def parse_scene_dict(data: Any) -> list[dict[str, Any]]:
                 f"component {k} ({item.get('name', 'unnamed')!r}) has unknown key(s) {sorted(unknown)}; "
                 f"allowed: {sorted(_KEYS)}"
             )
-        name = item["name"] if "name" in item else _free_name(f"C{k}", items)
+        name = item["name"] if "name" in item else free_name(
+            f"C{k}", {it.get("name") for it in items if isinstance(it, dict)})
         if not isinstance(name, str):
             raise SceneFileError(f"component {k}: 'name' must be a string, got {name!r}")
         out.append(

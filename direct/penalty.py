@@ -130,6 +130,10 @@ _ROUTE_CHECK_REACH = 2.0
 #: check's estimate at 1.01e-4, the farthest seed 185, 1.5e-5 against 1.6e-5)
 _SECOND_PASS_TOL = 1e-4
 
+#: ``direct.penalty``'s default resolution (cells along the longer side of a pair domain); below it the default
+#: computation runs as well (second_resolution)
+_DEFAULT_RESOLUTION = 128
+
 
 @dataclass(frozen=True)
 class Pair:
@@ -856,7 +860,7 @@ def penalty(
     *,
     power: float | None = None,
     tol: float = 1e-3,
-    resolution: int = 128,
+    resolution: int = _DEFAULT_RESOLUTION,
     neighbours: int = 16,
     backend: Backend = "scipy",
     refine: bool = True,
@@ -1013,8 +1017,6 @@ def second_resolution(resolution: int) -> int:
     return (3 * int(resolution)) // 4 if resolution >= _DEFAULT_RESOLUTION else _DEFAULT_RESOLUTION
 
 
-#: ``direct.penalty``'s default resolution (cells along the longer side of a pair domain)
-_DEFAULT_RESOLUTION = 128
 
 #: the range of ``log10(extent ** (order + 1))`` (deformed extent in length units, ``order`` the metric's power of
 #: ``|r|``): the scale of the lengths, within which they neither overflow nor lose their digits to underflow
@@ -1066,8 +1068,9 @@ def _penalty(scene, metric, power, tol, resolution, neighbours, backend, refine,
         raise DirectError(f"coarsen must be 1 (a uniform grid) or an integer of at least 4, got {coarsen!r}")
     settings: dict[str, Any] = dict(met.describe())
     allow_second = second_pass is not False  # grazing domains get a second pass unless it is refused
+    coarse = int(resolution) < _DEFAULT_RESOLUTION  # the default computation runs too (second_resolution)
     if second_pass is None:
-        second_pass = tol <= _SECOND_PASS_TOL or met.degenerate or int(resolution) < _DEFAULT_RESOLUTION
+        second_pass = tol <= _SECOND_PASS_TOL or met.degenerate or coarse
     settings.update(tol=float(tol), resolution=int(resolution), neighbours=int(neighbours), coarsen=int(coarsen),
                     backend=backend,
                     refine=bool(refine), second_pass=bool(second_pass and refine))
@@ -1075,8 +1078,7 @@ def _penalty(scene, metric, power, tol, resolution, neighbours, backend, refine,
     # below the default resolution the second pass is the default computation itself, route check included
     # (interval seed 138 at 64 cells: both grids, 64 and 128 cells, route a curve into a valley 62 % longer, and
     # only the default's check on 96 cells finds the shorter one; without it 7.7e-4 above J, estimate 3.8e-5)
-    settings["route_check"] = bool(refine and allow_second
-                                   and (not settings["second_pass"] or int(resolution) < _DEFAULT_RESOLUTION))
+    settings["route_check"] = bool(refine and allow_second and (not settings["second_pass"] or coarse))
     _check_scale(scene, met)
     crossings = find_crossings(scene)
     names = [c.name for c in scene.components]

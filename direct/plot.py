@@ -28,6 +28,8 @@ from typing import Any
 
 import numpy as np
 
+from .errors import SceneError
+
 __all__ = ["plot_scene", "plot_domain", "plot_penalty"]
 
 #: colours of the positive and negative points
@@ -229,8 +231,6 @@ def plot_scene(scene, crossings=None, ax=None) -> list[Any]:
 
 def _index(scene, c) -> int:
     """Index of component ``c`` (an index or a name) in ``scene``."""
-    from .errors import SceneError
-
     if isinstance(c, str):
         return scene.index(c)
     if isinstance(c, (int, np.integer)) and not isinstance(c, bool) and 0 <= c < len(scene.components):
@@ -241,8 +241,6 @@ def _index(scene, c) -> int:
 
 def _check_result(result, scene) -> None:
     """Refuse a result computed on another scene (its components' names not all in ``scene``)."""
-    from .errors import SceneError
-
     names = {c.name for c in scene.components}
     used = {name for p in result.pairs for name in p.components}
     crossing_ids = {int(v) for c in result.crossings for v in c.components}
@@ -349,8 +347,6 @@ def plot_domain(result, scene, pair=(0, 1), ax=None, background: bool = True) ->
     scene = _resolve(scene)
     _check_result(result, scene)
     if not isinstance(pair, (tuple, list)) or len(pair) != 2:
-        from .errors import SceneError
-
         raise SceneError(f"pair must name two components (i, j), got {pair!r}")
     ax = _axes(ax)
     i, j = (_index(scene, c) for c in pair)

@@ -209,7 +209,7 @@ class Scene:
     name: str = ""
 
     def __post_init__(self) -> None:
-        from .checks import check_scene
+        from .checks import check_scene, free_name
 
         comps = []
         taken = {getattr(c, "name", "") for c in self.components}
@@ -217,9 +217,7 @@ class Scene:
             if not isinstance(c, Component):
                 raise SceneError(f"component {k} is a {type(c).__name__}, not a direct.Component")
             if not c.name:  # "C<k>", or with a suffix when the user gave another component that name
-                name = f"C{k}"
-                while name in taken:
-                    name += "'"
+                name = free_name(f"C{k}", taken)
                 taken.add(name)
                 c = Component(c.reference, c.deformed, c.closed, name)
             comps.append(c)
