@@ -3,7 +3,8 @@
 Usage::
 
     direct penalty SCENE [--metric {G,g,euclid}] [--power P] [--tol TOL] [--resolution N] [--coarsen C]
-                         [--neighbours {8,16,32}] [--backend {scipy,networkx}] [--no-refine] [--json]
+                         [--neighbours {8,16,32}] [--backend {scipy,networkx}] [--no-refine]
+                         [--second-pass {auto,on,off}] [--json]
     direct plot SCENE -o FIG.png [same options as penalty, without --json]
     direct scenes
     direct --version
@@ -14,7 +15,10 @@ same program.
 
 Every error that `direct` raises on purpose (:class:`direct.DirectError`) is
 reported as one line ``direct: error: <message>`` on standard error with exit
-status 2, as are command-line usage errors.
+status 2, as are command-line usage errors.  Warnings (a
+:class:`direct.ToleranceWarning` when the estimate exceeds the tolerance) are
+printed as one line ``direct: warning (<category>): <message>`` on standard
+error; the result is still printed, with exit status 0.
 """
 
 from __future__ import annotations
@@ -24,6 +28,7 @@ import json
 import math
 import os
 import sys
+import warnings
 from typing import Any, NoReturn, Sequence
 
 __all__ = ["main", "build_parser"]
@@ -45,8 +50,8 @@ def _add_method_options(p: argparse.ArgumentParser) -> None:
         choices=["G", "g", "euclid"],
         default="G",
         help="'G': |y1 - y2|^(2q) Id (Example 14, default); 'g': g(s) = s^p (section 3.4.2); "
-        "'euclid': the heuristic metric of section 3.1 (degenerate: its values are not certified and always "
-        "warn)",
+        "'euclid': the heuristic metric of section 3.1 (degenerate: its values are not certified; every positive "
+        "value warns)",
     )
     p.add_argument("--power", type=float, default=None, metavar="P", help="q of G or p of g (default 2)")
     p.add_argument("--tol", type=float, default=1e-3, help="relative tolerance of each refined geodesic (default 1e-3)")
@@ -66,8 +71,8 @@ def _add_method_options(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--second-pass", choices=["auto", "on", "off"], default="auto",
         help="solve again from a second grid's routes and add the spread to the error estimate "
-        "(auto: when tol <= 1e-4 or the resolution is below 128; otherwise only the chosen curves are checked against "
-        "the second grid's routes; "
+        "(auto: when tol <= 1e-4, when the resolution is below 128, always with euclid, and on every domain with a "
+        "grazing crossing; otherwise only the chosen curves are checked against the second grid's routes; "
         "off: neither)",
     )
 
@@ -333,6 +338,12 @@ def _cmd_scenes(args: argparse.Namespace) -> int:
     return 0
 
 
+def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """Print a warning as one line ``direct: warning (Category): <message>`` on standard error."""
+    text = " ".join(str(message).split())
+    print(f"direct: warning ({category.__name__}): {text}", file=sys.stderr if file is None else file)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the ``direct`` command.
 
@@ -356,7 +367,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         return int(exc.code or 0) if not isinstance(exc.code, str) else 2
     command = {"penalty": _cmd_penalty, "plot": _cmd_plot, "scenes": _cmd_scenes}[args.command]
     try:
-        return command(args)
+        with warnings.catch_warnings():
+            warnings.showwarning = _show_warning
+            return command(args)
     except DirectError as err:
         message = " ".join(str(err).split()) or type(err).__name__
         print(f"direct: error: {message}", file=sys.stderr)

@@ -207,7 +207,8 @@ class Penalty:
         the spread between the two solutions where a second pass runs (and,
         for a curve the route check refined again, the spread of its two
         starts when they settle within 1 % of each other); 0
-        when there is no crossing.  NaN with ``refine=False``: the grid value
+        when no curve is needed (``J = 0``: no crossing, and no condition
+        of a circle asks for a curve).  NaN with ``refine=False``: the grid value
         has no estimate (its stencil and sampling bias reach 9 % on the cases
         of ``validation/failures.md``).
     grid_value : float
@@ -251,14 +252,22 @@ class Penalty:
         return [p.path for p in self.pairs]
 
     def to_dict(self, scene: Scene | None = None) -> dict[str, Any]:
-        """JSON-ready form; with ``scene``, crossings name their components."""
-        if scene is not None:
-            crossings = [c.to_dict(scene) for c in self.crossings]
-        else:
-            crossings = [
-                {"components": list(c.components), "params": list(c.params), "point": list(c.point), "sign": c.sign}
-                for c in self.crossings
-            ]
+        """JSON-ready form of the result (what ``direct penalty --json`` prints, without the scene's header).
+
+        Parameters
+        ----------
+        scene : Scene, optional
+            The scene of the result: crossings then name their components
+            (:meth:`direct.Crossing.to_dict`), otherwise give their indices.
+
+        Returns
+        -------
+        dict
+            ``value``, ``error_estimate``, ``grid_value``, ``upper_bound``,
+            ``crossings``, ``pairs`` (:meth:`Pair.to_dict`), ``settings`` and
+            ``seconds``, as the attributes of the same names.
+        """
+        crossings = [c.to_dict(scene) for c in self.crossings]
         return {
             "value": self.value,
             "error_estimate": self.error_estimate,
@@ -898,16 +907,6 @@ def penalty(
         (``second_pass``), so a coarser grid saves no time.
     neighbours : {8, 16, 32}, default 16
         Grid stencil.
-    coarsen : int, default 4
-        Local refinement of the grid: the step of ``resolution`` only in a
-        patch reaching two coarse cells around each crossing point (where ``rho``
-        vanishes and the geodesics choose their way out), a lattice
-        ``coarsen`` times coarser elsewhere (see
-        :func:`direct.grid.build_graph`); refined too where ``rho`` varies by
-        more than a factor 4 across a coarse cell (along the diagonal, and
-        where two pieces of the curve come close).  Domains with a circle
-        keep the uniform grid.  1 gives the uniform grid of ``resolution``
-        cells everywhere; otherwise at least 4 (larger than every stencil).
     backend : {"scipy", "networkx"}, default "scipy"
         Shortest-path implementation of the grid stage.
     refine : bool, default True
@@ -940,6 +939,16 @@ def penalty(
         the shorter kept (``settings["route_check"]``; about 15 % of the
         time).  ``second_pass=False`` refuses every second start: one grid's
         routes, nothing else.
+    coarsen : int, default 4
+        Local refinement of the grid: the step of ``resolution`` only in a
+        patch reaching two coarse cells around each crossing point (where ``rho``
+        vanishes and the geodesics choose their way out), a lattice
+        ``coarsen`` times coarser elsewhere (see
+        :func:`direct.grid.build_graph`); refined too where ``rho`` varies by
+        more than a factor 4 across a coarse cell (along the diagonal, and
+        where two pieces of the curve come close).  Domains with a circle
+        keep the uniform grid.  1 gives the uniform grid of ``resolution``
+        cells everywhere; otherwise at least 4 (larger than every stencil).
 
     Returns
     -------
@@ -953,16 +962,24 @@ def penalty(
         When ``error_estimate`` exceeds ``tol * value``: the value is
         returned, with the warning that the tolerance was not reached.
     DegenerateMetricWarning
-        Always, for a degenerate metric (``euclid``), instead of the above:
+        Always, for a degenerate metric (``euclid``) when ``J > 0``, with or
+        without ``refine``, instead of the above:
         the estimate cannot cover the choice of routes (a subclass of
         :class:`ToleranceWarning`).
 
     Raises
     ------
     SceneError
-        For an invalid scene.
+        For an invalid scene, or one whose lengths would overflow or
+        underflow in floating point (the message says how to rescale).
     DegenerateError
         For contacts the generic-perturbation rule cannot decide.
+    DirectError
+        For an invalid argument (``tol`` outside ``(0, 1)``, an unknown
+        ``metric`` or ``backend``, a ``power`` the metric refuses,
+        ``resolution`` below 4 or not whole, ``neighbours`` not 8, 16 or 32,
+        ``coarsen`` not 1 or at least 4).  Every error raised on purpose is
+        a :class:`DirectError`; the two above are subclasses.
 
     Examples
     --------
@@ -1060,8 +1077,10 @@ def _penalty(scene, metric, power, tol, resolution, neighbours, backend, refine,
     met = get_metric(metric, power)
     if not (0 < tol < 1):
         raise DirectError(f"tol must be in (0, 1), got {tol!r}")
-    if int(resolution) < 4:
-        raise DirectError(f"resolution must be at least 4 grid cells, got {resolution!r}")
+    if isinstance(resolution, bool) or not float(resolution).is_integer() or int(resolution) < 4:
+        raise DirectError(f"resolution must be a whole number of grid cells, at least 4, got {resolution!r}")
+    if backend not in ("scipy", "networkx"):
+        raise DirectError(f"backend must be 'scipy' or 'networkx', got {backend!r}")
     if neighbours not in (8, 16, 32):
         raise DirectError(f"neighbours must be 8, 16 or 32, got {neighbours!r}")
     if int(coarsen) != coarsen or not (coarsen == 1 or coarsen >= 4):
@@ -1124,13 +1143,19 @@ def _penalty(scene, metric, power, tol, resolution, neighbours, backend, refine,
                 # mirror image in M_j x M_i: coordinates swapped, signs (hence orientation) reversed
                 pairs.append(Pair((nj, ni), None if ep_ is None else ep_[::-1], None if sp_ is None else sp_[::-1],
                                   ec, sc, length, perr, path[::-1, ::-1].copy(), closed, plen))
-    if refine and total > 0 and met.degenerate:
+    if total > 0 and met.degenerate:
+        if refine:
+            told = (f"J^{met.name} = {total:.7g} with an error estimate of {err_total:.2g} "
+                    f"({err_total / total:.1e} relative, tol={tol:g})")
+            covers = ("the estimate covers their refinement and the spread between two grids, not the routes "
+                      "neither grid found (validation/euclid.py).")
+        else:
+            told = f"J^{met.name} = {total:.7g} from the grid alone (refine=False: no estimate)"
+            covers = "the grid value also carries the stencil's bias; refine=True gives an estimate."
         warnings.warn(
-            f"J^{met.name} = {total:.7g} with an error estimate of {err_total:.2g} ({err_total / total:.1e} relative, "
-            f"tol={tol:g}): this metric is degenerate, and its grids may route a curve towards a longer local "
-            "geodesic than the shortest. upper_bound, the exact length of the curves returned, bounds J from "
-            "above; the estimate covers their refinement and the spread between two grids, not the routes "
-            "neither grid found (validation/euclid.py).",
+            f"{told}: this metric is degenerate, and its grids may route a curve towards a longer local geodesic "
+            "than the shortest. upper_bound, the exact length of the curves returned, bounds J from above; "
+            + covers,
             DegenerateMetricWarning,
             stacklevel=3,
         )

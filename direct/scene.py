@@ -125,6 +125,16 @@ class Component:
 
         A parameter on a vertex belongs to the segment that starts there,
         except the last vertex of an open component.
+
+        Parameters
+        ----------
+        s : (...,) array_like of float
+            Reference arclength parameters (length units).
+
+        Returns
+        -------
+        (...,) ndarray of int
+            Segment indices in ``[0, n_segments - 1]``.
         """
         k = np.searchsorted(self.params, np.asarray(s, dtype=float), side="right") - 1
         return np.clip(k, 0, self.n_segments - 1)
@@ -149,7 +159,18 @@ class Component:
         return self.deformed_ring[k] + (s - self.params[k])[..., None] * self.velocities[k]
 
     def j(self, s: np.ndarray) -> np.ndarray:
-        """Evaluate the reference embedding at reference arclength ``s`` (see :meth:`phi`)."""
+        """Evaluate the reference embedding at reference arclength ``s``.
+
+        Parameters
+        ----------
+        s : (...,) array_like of float
+            Parameters in ``[0, length]`` (taken modulo ``length`` when closed).
+
+        Returns
+        -------
+        (..., 2) ndarray of float
+            Reference positions.
+        """
         s = np.asarray(s, dtype=float)
         if self.closed:
             s = np.mod(s, self.length)
@@ -226,7 +247,25 @@ class Scene:
 
     @classmethod
     def from_dict(cls, data: Any, name: str = "") -> "Scene":
-        """Build a scene from its JSON form (see the module docstring)."""
+        """Build a scene from its JSON form (see the module docstring).
+
+        Parameters
+        ----------
+        data : dict
+            ``{"components": [{"name": ..., "closed": ..., "reference": ..., "deformed": ...}, ...]}``.
+        name : str, default ""
+            The scene's name.
+
+        Returns
+        -------
+        Scene
+
+        Raises
+        ------
+        SceneError
+            For a malformed description or an invalid scene; the message
+            names the component and vertex at fault.
+        """
         from .checks import parse_scene_dict
 
         return cls(tuple(Component(**kw) for kw in parse_scene_dict(data)), name=name)
@@ -236,7 +275,20 @@ class Scene:
         return {"components": [c.to_dict() for c in self.components]}
 
     def to_json(self, path: str | os.PathLike | None = None, indent: int | None = 1) -> str:
-        """Serialize to JSON; also write it to ``path`` when given."""
+        """Serialize to JSON; also write it to ``path`` when given.
+
+        Parameters
+        ----------
+        path : str or path-like, optional
+            File to write (UTF-8, with a final newline).
+        indent : int or None, default 1
+            Indentation of :func:`json.dumps` (``None``: one line).
+
+        Returns
+        -------
+        str
+            The JSON text (what :func:`load_scene` reads back).
+        """
         text = json.dumps(self.to_dict(), indent=indent)
         if path is not None:
             with open(path, "w", encoding="utf-8") as fh:
@@ -244,15 +296,54 @@ class Scene:
         return text
 
     def index(self, name: str) -> int:
-        """Index of the component called ``name``."""
+        """Index of the component called ``name``.
+
+        Parameters
+        ----------
+        name : str
+            A component's name.
+
+        Returns
+        -------
+        int
+
+        Raises
+        ------
+        SceneError
+            When no component has that name (the message lists the names).
+        """
         for k, c in enumerate(self.components):
             if c.name == name:
                 return k
         raise SceneError(f"no component named {name!r}; the scene has {[c.name for c in self.components]}")
 
     def with_deformed(self, deformed: Iterable[np.ndarray]) -> "Scene":
-        """The same reference with new deformed vertices, component by component."""
-        comps = [Component(c.reference, d, c.closed, c.name) for c, d in zip(self.components, deformed)]
+        """The same reference with new deformed vertices, component by component.
+
+        Parameters
+        ----------
+        deformed : iterable of (n_i, 2) array_like of float
+            One array of deformed vertices per component, in order, each
+            with as many vertices as that component's reference.
+
+        Returns
+        -------
+        Scene
+            A new scene with the same names, references and closedness.
+
+        Raises
+        ------
+        SceneError
+            When the number of arrays differs from the number of components,
+            or for an invalid deformed polyline.
+        """
+        deformed = list(deformed)
+        if len(deformed) != len(self.components):
+            raise SceneError(
+                f"with_deformed got {len(deformed)} deformed polylines for the {len(self.components)} components "
+                f"{[c.name for c in self.components]}: give one per component, in order."
+            )
+        comps = [Component(c.reference, d, c.closed, c.name) for c, d in zip(self.components, deformed, strict=True)]
         return Scene(tuple(comps), name=self.name)
 
     def __repr__(self) -> str:

@@ -66,9 +66,9 @@ def cross(a: float = 0.5, b: float = 0.5, c: float = 0.5, d: float = 0.5, angle:
 
     Parameters
     ----------
-    a, b, c, d : float
+    a, b, c, d : float, default 0.5
         Arclength from the crossing to the ends (length units, > 0).
-    angle : float
+    angle : float, default pi / 2
         Angle between the two segments (radians, in ``(0, pi)``).
 
     Returns
@@ -222,6 +222,13 @@ def resolve(scene: "Scene | str") -> Scene:
     Returns
     -------
     Scene
+
+    Raises
+    ------
+    SceneError
+        For a string that is neither an existing file nor a built-in name,
+        or an object of another type; :class:`SceneFileError` for a file
+        that cannot be read as a scene.
     """
     import os
 
@@ -234,5 +241,9 @@ def resolve(scene: "Scene | str") -> Scene:
             return load_scene(scene)
         if str(scene) in _BUILTIN:
             return get(str(scene))
-        raise SceneError(f"{os.fspath(scene)!r} is neither a scene file nor a built-in scene name {names()}")
+        text = os.fspath(scene)
+        if str(text).lower().endswith(".json") or os.sep in str(text):
+            raise SceneError(f"scene file {text!r} not found (from {os.getcwd()!r}); give the path of an existing "
+                             f"JSON scene file, or a built-in scene name {names()}")
+        raise SceneError(f"{text!r} is neither a scene file nor a built-in scene name {names()}")
     raise SceneError(f"expected a Scene, a JSON file path or a built-in name, got {type(scene).__name__}")

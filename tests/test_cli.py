@@ -169,6 +169,22 @@ def test_bad_arguments(capsys, args):
     assert_one_line_error(captured.err, code)
 
 
+def test_a_missing_file_is_said_to_be_missing(capsys):
+    code = main(["penalty", "missing.json"])
+    captured = capsys.readouterr()
+    assert_one_line_error(captured.err, code)
+    assert "scene file 'missing.json' not found" in captured.err
+
+
+def test_warnings_print_as_one_line_and_the_result_still_prints(capsys):
+    code = main(["penalty", "fig2", "--metric", "euclid", "--no-refine", "--json"])
+    captured = capsys.readouterr()
+    assert code == 0
+    assert json.loads(captured.out)["value"] > 0
+    lines = captured.err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("direct: warning (DegenerateMetricWarning): J^euclid = ")
+
+
 def test_error_through_python_m(tmp_path):
     path = tmp_path / "bad.json"
     path.write_text(BAD_FILES["mismatched counts"])

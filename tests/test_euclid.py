@@ -30,6 +30,15 @@ def test_every_euclid_value_warns_that_routes_are_not_certified():
         assert direct.penalty("fig2").settings["second_pass"] is False
 
 
+def test_an_unrefined_euclid_value_warns_too_and_zero_does_not():
+    with pytest.warns(direct.DegenerateMetricWarning, match="from the grid alone"):
+        res = direct.penalty("fig2", metric="euclid", refine=False)
+    assert res.value > 0
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # J = 0 exactly (no crossing, no condition): nothing to warn of
+        assert direct.penalty("ring", metric="euclid").value == 0.0
+
+
 def test_a_curve_routed_to_the_longer_local_geodesic_is_caught_by_the_second_stencil():
     """Seed 2: two local geodesics of one curve, 0.647 and 0.551; at 128 cells 16 neighbours pick the longer.
 

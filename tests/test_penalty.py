@@ -214,6 +214,18 @@ def test_bad_settings():
     for coarsen in (0, 2, 3, 4.5):  # a coarse lattice must be 1 (none) or coarser than every stencil's reach
         with pytest.raises(direct.DirectError, match="coarsen"):
             direct.penalty("cross", coarsen=coarsen)
+    for resolution in (2, 100.5, True):
+        with pytest.raises(direct.DirectError, match="resolution"):
+            direct.penalty("cross", resolution=resolution)
+    with pytest.raises(direct.DirectError, match="backend"):
+        direct.penalty("cross", backend="igraph")
+
+
+def test_to_dict_keeps_every_crossing_field_without_the_scene():
+    res = direct.penalty("fig2")
+    bare, named = res.to_dict()["crossings"], res.to_dict(direct.scenes.get("fig2"))["crossings"]
+    assert [set(c) for c in bare] == [set(c) for c in named]
+    assert bare[0]["components"] == [0, 1] and named[0]["components"] == ["I1", "I2"]
 
 
 @pytest.mark.parametrize("seed", [0, 2, 3])  # seed 1 takes 20 s a setting at tol 1e-5 (both grids)

@@ -170,3 +170,12 @@ def test_default_names_avoid_the_given_ones():
 def test_reference_vertices_too_close_for_floating_point():
     with pytest.raises(direct.SceneError, match=r"reference vertices 0 and 1 are 1e-170 apart"):
         direct.Component([[0, 0], [1e-170, 0], [1, 0]], [[0, 0], [1, 0], [2, 0]], name="A")
+
+
+def test_with_deformed_wants_one_polyline_per_component():
+    sc = direct.scenes.get("fig2")
+    moved = sc.with_deformed([c.deformed + 1.0 for c in sc.components])
+    assert [c.name for c in moved.components] == ["I1", "I2"]
+    np.testing.assert_array_equal(moved.components[1].deformed, sc.components[1].deformed + 1.0)
+    with pytest.raises(direct.SceneError, match="1 deformed polylines for the 2 components"):
+        sc.with_deformed([sc.components[0].deformed])
