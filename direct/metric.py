@@ -37,6 +37,7 @@ in closed form when ``rho(s) = s`` (``G`` with ``q = 2``, ``g`` with ``p = 1``).
 
 from __future__ import annotations
 
+import numbers
 import weakref
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
@@ -201,8 +202,7 @@ class G(GFamily):
     q: float = 2.0
 
     def __post_init__(self):
-        if not (self.q > 0 and np.isfinite(self.q)):
-            raise DirectError(f"G metric: the exponent q must be positive and finite, got {self.q!r}")
+        _checked_power(self.q)
 
     @property
     def degree(self):  # noqa: D102
@@ -249,8 +249,7 @@ class g(Metric):  # noqa: N801  (the paper's name)
     name = "g"
 
     def __post_init__(self):
-        if not (self.p > 0 and np.isfinite(self.p)):
-            raise DirectError(f"g metric: the power p must be positive and finite, got {self.p!r}")
+        _checked_power(self.p)
 
     @property
     def degree(self):  # noqa: D102
@@ -353,16 +352,24 @@ def get_metric(metric: "str | Metric" = "G", power: float | None = None) -> Metr
         The metric; a :class:`Metric` instance is returned as is.
     power : float, optional
         ``q`` of ``G = |y1 - y2|^(2q) Id`` (default 2, Example 14) or ``p`` of
-        ``g(s) = s^p`` (default 2).  Not allowed with ``"euclid"``.
+        ``g(s) = s^p`` (default 2): a real number in ``(0, 64]``.  Not
+        allowed with ``"euclid"``.
 
     Returns
     -------
     Metric
+
+    Raises
+    ------
+    DirectError
+        For an unknown metric, or a power that is not a real number in ``(0, 64]``.
     """
     if isinstance(metric, Metric):
         if power is not None:
             raise DirectError("give the power inside the Metric object, not as power=")
         return metric
+    if power is not None:
+        power = _checked_power(power)
     if metric == "G":
         return G(q=2.0 if power is None else float(power))
     if metric == "g":
@@ -372,6 +379,22 @@ def get_metric(metric: "str | Metric" = "G", power: float | None = None) -> Metr
             raise DirectError("the euclid metric takes no power; use metric 'G' or 'g' with a power")
         return Euclid()
     raise DirectError(f"unknown metric {metric!r}; choose 'G' (Example 14), 'g' (section 3.4.2) or 'euclid'")
+
+
+#: the largest power accepted: lengths scale as ``|r|`` to twice it (for g), and the quadrature of an integer
+#: power takes about that many nodes per piece
+_MAX_POWER = 64.0
+
+
+def _checked_power(power) -> float:
+    """``power`` as a float: a real number in ``(0, _MAX_POWER]``, else a DirectError that says what is accepted."""
+    if isinstance(power, (bool, np.bool_)) or not isinstance(power, (numbers.Real, np.floating, np.integer)):
+        raise DirectError(f"power must be a real number, got {power!r} ({type(power).__name__})")
+    value = float(power)
+    if not (0.0 < value <= _MAX_POWER):
+        raise DirectError(f"power must be positive and at most {_MAX_POWER:g} (lengths scale as |r| to about twice "
+                          f"the power, beyond floating point for larger ones), got {power!r}")
+    return value
 
 
 @lru_cache(maxsize=None)

@@ -211,7 +211,10 @@ class Penalty:
         the refined geodesics (:func:`direct.refinement.refine_many`), plus
         the spread between the two solutions where a second pass runs (and,
         for a curve the route check refined again, the spread of its two
-        starts when they settle within 1 % of each other); 0
+        starts when they settle within 1 % of each other), plus the rounding
+        of ``r = phi(x1) - phi(x2)`` along each curve (:func:`_rounding_errors`:
+        about 1e-15 of the value at the origin, more for a scene far from
+        it or a crossing very close to an end); 0
         when no curve is needed (``J = 0``: no crossing, and no condition
         of a circle asks for a curve).  NaN with ``refine=False``: the grid value
         has no estimate (its stencil and sampling bias reach 9 % on the cases
@@ -666,6 +669,35 @@ def _slid_ends(domain: Domain, metric: Metric, keys: list, cache: dict, tol: flo
         found.setdefault(k, []).append(rp)
     best = {k: min(rps, key=lambda rp: rp.length) for k, rps in found.items()}
     return {k: rp for k, rp in best.items() if rp.length < cache[k].length}
+
+
+def _rounding_errors(domain: Domain, metric: Metric, curves: list, scale: float) -> np.ndarray:
+    """Bounds on the rounding error of each curve's length: ``(m,)``, in the units of the lengths.
+
+    ``r = phi(x1) - phi(x2)`` is formed from deformed coordinates as large as
+    ``scale``, so it carries an absolute error of a few ``eps * scale``; the
+    length of a curve weighs ``|r|`` to the metric's ``order``.  Along a curve
+    on which ``|r|`` grows to ``R``, the relative error of the length is
+    then about ``(order + 1) delta / R``; this takes ``2 (order + 1) eps scale
+    / R`` (``delta = 2 eps scale``).  Negligible for a scene at the origin
+    (about 1e-15), it is what is left of the digits when the scene lies far
+    from the origin (``cross60`` translated by 1e12: 1.8e-4 off, estimate
+    1.3e-6, before this term) or a crossing lies very close to the end of a
+    component (``cross(1e-12, 1, 1, 1)`` with ``g``: 1.5e-4 off; an
+    adversarial review).  Zero for a metric that does not weigh ``|r|``.
+    """
+    out = np.zeros(len(curves))
+    if not float(metric.order) > 0:
+        return out
+    ci, cj = domain.comps
+    eps = np.finfo(float).eps
+    for k, c in enumerate(curves):
+        path, length = np.asarray(c[2], dtype=float), float(c[3])
+        if not (length > 0 and np.isfinite(length)):
+            continue
+        reach = float(np.linalg.norm(ci.phi(path[:, 0]) - cj.phi(path[:, 1]), axis=-1).max())
+        out[k] = length * min(1.0, 2.0 * (float(metric.order) + 1.0) * eps * scale / reach) if reach > 0 else length
+    return out
 
 
 def _best_of_starts(found: list[RefinedPath]) -> RefinedPath:
@@ -1178,7 +1210,9 @@ def _penalty(scene, metric, power, tol, resolution, neighbours, backend, refine,
     _check_scale(scene, met)
     crossings = find_crossings(scene)
     names = [c.name for c in scene.components]
-    total = grid_total = err_total = 0.0
+    total = grid_total = err_total = rounding_total = 0.0
+    # the size of the deformed coordinates, whose rounding enters r = phi(x1) - phi(x2) (see _rounding_errors)
+    digits_scale = max(float(np.abs(np.asarray(c.deformed, dtype=float)).max()) for c in scene.components)
     pairs: list[Pair] = []
     for dom in domains(scene, crossings):
         if len(dom.points) == 0 and not any(boundary_conditions(dom).values()):
@@ -1203,12 +1237,15 @@ def _penalty(scene, metric, power, tol, resolution, neighbours, backend, refine,
         if again:  # domain solves, for the record
             settings["refined_again"] = settings.get("refined_again", 0) + int(again)
         m = dom.multiplicity
+        rounding = _rounding_errors(dom, met, curves, digits_scale)
         total += m * value
         grid_total += m * grid_value
-        err_total += m * err
+        err_total += m * (err + float(rounding.sum()))
+        rounding_total += m * float(rounding.sum())
         ni, nj = names[dom.pair[0]], names[dom.pair[1]]
         exact = polyline_lengths(dom, met, [c[2] for c in curves])
-        for (start, end, path, length, perr, closed), plen in zip(curves, exact.tolist()):
+        for (start, end, path, length, perr, closed), plen, rerr in zip(curves, exact.tolist(), rounding.tolist()):
+            perr += rerr
             a = start if isinstance(start, (int, np.integer)) else None
             b = end if isinstance(end, (int, np.integer)) else None
             sp_ = None if a is None else tuple(map(float, dom.points[a]))
@@ -1234,6 +1271,24 @@ def _penalty(scene, metric, power, tol, resolution, neighbours, backend, refine,
             "than the shortest. upper_bound, the exact length of the curves returned, bounds J from above; "
             + covers,
             DegenerateMetricWarning,
+            stacklevel=3,
+        )
+    elif refine and crossings and total < np.finfo(float).tiny:
+        warnings.warn(
+            f"J = {total:.3g} with {len(crossings)} crossing(s): the lengths of their curves fall below the "
+            "smallest normal floating-point number (J > 0 for a transversal crossing). Rescale the deformed "
+            f"coordinates (J^{met.name} scales as the power {float(met.order) + 1:g} of the size), or lower the power.",
+            ToleranceWarning,
+            stacklevel=3,
+        )
+    elif refine and rounding_total > 0.5 * err_total > 0.5 * tol * max(total, 0.0):
+        warnings.warn(
+            f"J = {total:.7g} has an error estimate of {err_total:.2g}, above the requested tol={tol:g}, mostly "
+            f"from rounding: r = phi(x1) - phi(x2) is formed from deformed coordinates as large as "
+            f"{digits_scale:.3g}, and its curves reach only a small fraction of that (a scene far from the origin, "
+            "or a crossing very close to the end of a component). Translate the scene to the origin, or read the "
+            "value with its error_estimate.",
+            ToleranceWarning,
             stacklevel=3,
         )
     elif refine and err_total > tol * max(total, 0.0):  # J = 0 with a positive estimate: no relative accuracy
