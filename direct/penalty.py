@@ -109,9 +109,11 @@ _SEARCH_BOUND = 1.5
 #: both ways round (see _family_shifts)
 _FAMILY_SHIFTS = (-0.61, -0.29, 0.29, 0.61)
 
-#: a chosen curve from a crossing point to the diagonal is refined again with its end slid along the diagonal by
-#: these fractions of its chord, both ways (see _slid_ends)
-_END_SHIFTS = (-0.25, -0.1, 0.1, 0.25)
+#: a curve from a crossing point to the diagonal is refined again with its end slid to another crossing point whose
+#: grid cost to the diagonal is below this fraction of the curve's (see _slid_ends)
+_SHALLOW = 0.01
+#: ... when that point lies within this fraction of the curve's chord along the diagonal from its end
+_SLIDE_REACH = 0.5
 
 #: closed curves of a torus refined from this many starts each (see closed_curve_distances), the best kept
 _CLOSED_STARTS = 3
@@ -618,25 +620,37 @@ def _more_starts(domain: Domain, metric: Metric, starts: dict, cache: dict, tol:
     return {k: _best_of_starts([cache[k]] + [next(refined) for _ in jobs]) for k, jobs in starts.items()}
 
 
-def _slid_ends(domain: Domain, metric: Metric, keys: list, cache: dict, tol: float, atol: float) -> dict:
-    """Chosen curves from a crossing point to the diagonal, refined again with their end slid along it both ways.
+def _slid_ends(domain: Domain, metric: Metric, keys: list, cache: dict, grid_costs: dict, tol: float,
+               atol: float) -> dict:
+    """Curves from a crossing point to the diagonal, refined again with their end slid towards shallow points.
 
-    The metric vanishes on the diagonal (``r = 0`` there), so the grid's
-    cost of reaching it varies little along it, and a curve's end can have
-    two basins there whose lengths differ by less than the grid's bias.
-    Each curve is refined again from copies of itself whose end slides by
-    ``_END_SHIFTS`` of the chord from its crossing point (the vertices move
-    in proportion to their arclength from that point).  The shortest copy
-    replaces the curve when it is shorter, with its own estimate: the
-    other basins are other geodesics, longer, not a spread of this one
-    (unlike the rotated copies of :func:`_family_shifts`, one family).
+    The metric vanishes on the diagonal (``r = 0`` there) and at every
+    crossing point, so near a crossing point close to the diagonal (a small
+    loop of a closed curve) a curve can reach the diagonal in two basins
+    whose lengths differ by less than the grid's bias.  For each curve from a
+    crossing point ``a`` to a side of the diagonal, and each other crossing
+    point whose grid cost to that side is below ``_SHALLOW`` of the curve's
+    and which lies along the diagonal within ``_SLIDE_REACH`` of the curve's
+    chord from its end,
+    the curve is refined again from copies whose end slides along the
+    diagonal to beside that point (to ``s = x1``, ``x2`` and their mean for
+    the point ``(x1, x2)``; the vertices move in proportion to their
+    arclength from ``a``).  The shortest copy replaces the curve when
+    it is shorter, with its own estimate: the other basins are other
+    geodesics, longer, not a spread of this one (unlike the rotated copies
+    of :func:`_family_shifts`, one family).
     Measured: a noisy figure eight with ``g``, ``p = 2``, at ``tol=1e-5``,
     listed from its 14th vertex, sent a crossing point's curve to the
-    diagonal 0.25 from where a shorter one ends (1.5024197 against
-    1.5021047), both passes alike: 2.1e-4 above ``J`` with an estimate of
-    3.9e-6, no warning (an adversarial review; ``tests/test_circles.py``).
-    Runs with the second pass (``tol <= 1e-4`` by default): a fifth of the
-    curve's refinement per start, for a difference within ``tol = 1e-3``.
+    diagonal 0.25 from where a shorter one ends, next to a small loop's
+    crossing point (1.5024197 against 1.5021047), both passes alike: 2.1e-4
+    above ``J`` with an estimate of 3.9e-6, no warning (an adversarial
+    review; ``tests/test_circles.py``).  Runs with the second pass
+    (``tol <= 1e-4`` by default) on the annulus (a circle with itself).
+    Sliding every such curve by fixed fractions of its chord, whether or not
+    a shallow point lies near, made the random closed polygons of
+    ``validation/random_closed.py`` 5 times slower at ``tol=1e-5``, and the
+    interval scenes (on the triangles) 1.8 times at ``tol=1e-4``, for
+    changes within their estimates.
 
     Returns
     -------
@@ -644,22 +658,33 @@ def _slid_ends(domain: Domain, metric: Metric, keys: list, cache: dict, tol: flo
         ``{key: RefinedPath}`` for the curves a slid start shortened.
     """
     ng = domain.n_grounds
+    S = domain.local_lengths[0]
     jobs, owner = [], []
-    scale = max(domain.lengths)
     for k in keys:
         u, v = k
         if (u < ng) == (v < ng):
             continue
-        X = cache[k].points if v < ng else cache[k].points[::-1]  # from the point to the ground
-        if domain.kind == "triangle" and abs(X[-1, 0] - X[-1, 1]) > 1e-9 * scale:
-            continue  # it ends on a side of the triangle, where the metric does not vanish
+        a, g = (u, v) if v < ng else (v, u)
+        reach = grid_costs.get(k, np.inf)
+        shallow = [p for p in range(ng, ng + len(domain.points)) if p != a
+                   and min(grid_costs.get((p, g), np.inf), grid_costs.get((g, p), np.inf)) <= _SHALLOW * reach]
+        if not shallow:
+            continue
+        X = cache[k].points if v < ng else cache[k].points[::-1]  # from a to the ground
         arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(X, axis=0), axis=1))])
         if not arc[-1] > 0:
             continue
-        along = (arc / arc[-1])[:, None] * np.linalg.norm(X[-1] - X[0]) * np.array([1.0, 1.0])
-        for f in _END_SHIFTS:
-            jobs.append(GeodesicJob(X + f * along, end_ground=v if v < ng else u))
-            owner.append(k)
+        end_s = domain.to_local(X[-1:], wrap=False)[0, 0]
+        chord = float(np.linalg.norm(X[-1] - X[0]))
+        for p in shallow:
+            x1, x2 = domain.points[p - ng]
+            for target in (x1, 0.5 * (x1 + x2), x2):  # the diagonal beside the point: s = x1 = x2 there
+                shift = target - end_s
+                shift -= S * np.round(shift / S)  # the nearer way round
+                if abs(shift) > _SLIDE_REACH * chord:  # a point far along the diagonal: another basin altogether
+                    continue
+                jobs.append(GeodesicJob(X + (arc / arc[-1])[:, None] * (shift * domain.basis[:, 0]), end_ground=g))
+                owner.append(k)
     if not jobs:
         return {}
     found: dict = {}
@@ -863,14 +888,14 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
                 starts = {k: [GeodesicJob(route(*k) + shift, start_ground=k[0], end_ground=k[1])
                               for shift in _family_shifts(domain)] for k in keys if k[0] < ng and k[1] < ng}
             out = _more_starts(domain, metric, starts, cache, tol, atol)
-            if settings["second_pass"] and domain.kind in ("annulus", "triangle"):
+            if settings["second_pass"] and domain.kind == "annulus":
                 # the chosen curves to the diagonal, and those of the points that a chosen curve joins (a shorter
                 # one to the diagonal can change the choice: the program is solved again)
                 joined = {w for u, v in keys if u >= ng and v >= ng for w in (u, v)}
                 near = [k for k in cache if k not in slid and ((k[0] < ng) != (k[1] < ng))
                         and (k in keys or max(k) in joined)]
                 slid.update(near)
-                out.update(_slid_ends(domain, metric, near, {**cache, **out}, tol, atol))
+                out.update(_slid_ends(domain, metric, near, {**cache, **out}, grid_costs, tol, atol))
             if settings["route_check"]:
                 out.update(_second_routes(keys, {**cache, **out}))
             return out
