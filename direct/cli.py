@@ -53,7 +53,8 @@ def _add_method_options(p: argparse.ArgumentParser) -> None:
         "'euclid': the heuristic metric of section 3.1 (degenerate: its values are not certified; every positive "
         "value warns)",
     )
-    p.add_argument("--power", type=float, default=None, metavar="P", help="q of G or p of g (default 2; a real number in (0, 64])")
+    p.add_argument("--power", type=float, default=None, metavar="P",
+                   help="q of G or p of g (default 2; a real number in (0, 64])")
     p.add_argument("--tol", type=float, default=1e-3, help="relative tolerance of each refined geodesic (default 1e-3)")
     p.add_argument(
         "--resolution", type=int, default=128, metavar="N",
