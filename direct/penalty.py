@@ -87,7 +87,7 @@ import numpy as np
 from threadpoolctl import ThreadpoolController
 
 from .crossings import Crossing, find_crossings
-from .errors import DegenerateMetricWarning, DirectError, SceneError, ToleranceWarning
+from .errors import DegenerateError, DegenerateMetricWarning, DirectError, SceneError, ToleranceWarning
 from .geodesics import Backend, closed_curve_bounds, closed_curve_distances, grid_distances, torus_distances
 from .grid import Domain, build_graph
 from .matching import solve as solve_assignment
@@ -96,7 +96,7 @@ from .metric import Metric, MetricName, get_metric
 from .refinement import GeodesicJob, RefinedPath, coarse_geodesics, polyline_lengths, refine_many
 from .scene import Scene
 from .scenes import resolve
-from .topology import turning_number, winding_number
+from .topology import exact_reversals, turning_number, winding_number
 
 __all__ = ["penalty", "Penalty", "Pair", "second_resolution"]
 
@@ -354,6 +354,16 @@ def _period(domain: Domain, level: float) -> int:
     kind = domain.kind
     if kind == "annulus":
         # near the diagonal r(s) ~ -v phi'(s): the turning number (Remark 10)
+        tips = exact_reversals(ci.deformed)
+        if tips.size:
+            k = int(tips[0])
+            raise DegenerateError(
+                f"the deformed polyline of component {ci.name!r} turns exactly back on itself at vertex {k} (a "
+                "spike, traversed out and back along the same line): its turning number depends on which side "
+                "the generic perturbation puts the way back, and the crossings of the spike's base may be decided "
+                f"otherwise (a rotation of the scene changed J from 0 to 14.5). Move vertex {k} off the line of its "
+                "neighbours, by a little more than rounding."
+            )
         return turning_number(ci.deformed, _polyline(ci, "deformed")) - turning_number(ci.reference,
                                                                                          _polyline(ci, "reference"))
     if kind == "torus" or domain.comps[0].closed:
@@ -374,14 +384,54 @@ def _polyline(comp, which: str, other=None, level: float | None = None) -> str:
     return out
 
 
-def _free_level(values: np.ndarray, period: float | None, length: float) -> float:
-    """A level in the gap of ``values`` that contains 0 (periodic) or below all of them (not periodic)."""
+def _free_level(values: np.ndarray, period: float | None, length: float, clearance=None) -> float:
+    """A level in the gap of ``values`` that contains 0 (periodic) or below all of them (not periodic).
+
+    Every level of the gap gives the same loop class, hence the same period
+    of eq. (6), as long as the point it puts on one curve is off the other.
+    With ``clearance`` (levels -> distance of that point from the other
+    curve), the level is the one of ``_LEVEL_SAMPLES`` spread over the gap
+    that lies farthest from the other curve: a level on a stretch where the
+    two curves touch without crossing made the winding number a matter of
+    rounding (touching triangles: 0 crossings and ``J = 267`` with no
+    warning; an adversarial review), or raised a DegenerateError that
+    depended only on which vertex a closed curve started at.
+    """
     if len(values) == 0:
-        return 0.5 * length
-    if period is None:
-        return 0.5 * float(np.min(values))
-    top = float(np.max(values))
-    return 0.5 * (top + period) if top < period else 0.5 * float(np.min(values))
+        lo, hi = 0.0, length
+    elif period is None:
+        lo, hi = 0.0, float(np.min(values))
+    else:
+        top = float(np.max(values))
+        lo, hi = (top, period + float(np.min(values))) if top < period else (0.0, float(np.min(values)))
+    if clearance is None:
+        return 0.5 * (lo + hi) if len(values) or period is None else 0.5 * length
+    levels = lo + (hi - lo) * (np.arange(_LEVEL_SAMPLES) + 0.5) / _LEVEL_SAMPLES
+    if period is not None:
+        levels = np.mod(levels, period)
+    return float(levels[int(np.argmax(clearance(levels)))])
+
+
+#: levels tried by _free_level for the one farthest from the other curve
+_LEVEL_SAMPLES = 65
+
+
+def _distance_to_polyline(points: np.ndarray, vertices: np.ndarray, closed: bool) -> np.ndarray:
+    """Euclidean distance from each point to a polyline (closed: the last vertex joined to the first)."""
+    a = np.asarray(vertices, dtype=float)
+    b = np.roll(a, -1, axis=0) if closed else a[1:]
+    a = a if closed else a[:-1]
+    d = b - a
+    dd = np.maximum((d * d).sum(axis=1), 1e-300)
+    rel = points[:, None, :] - a[None, :, :]
+    t = np.clip((rel * d[None]).sum(axis=2) / dd[None], 0.0, 1.0)
+    gap = rel - t[..., None] * d[None]
+    return np.sqrt((gap * gap).sum(axis=2)).min(axis=1)
+
+
+def _clearance(comp, other):
+    """Levels (``comp``'s reference arclength) -> distance of ``comp.phi(level)`` from ``other``'s deformed polyline."""
+    return lambda levels: _distance_to_polyline(comp.phi(levels), other.deformed, other.closed)
 
 
 def boundary_conditions(domain: Domain) -> dict[str, Any]:
@@ -415,14 +465,18 @@ def boundary_conditions(domain: Domain) -> dict[str, Any]:
     st = domain.to_local(domain.points) if len(domain.points) else np.empty((0, 2))
     S, V = domain.local_lengths
     sign = round(float(np.linalg.det(domain.basis)))
+    ci, cj = domain.comps
     if kind in ("cylinder", "annulus"):
-        v0 = _free_level(st[:, 1], None, V)
+        clear = None
+        if kind == "cylinder":  # the interval's point at the level, away from the circle
+            interval, circle = (cj, ci) if ci.closed else (ci, cj)
+            clear = _clearance(interval, circle)
+        v0 = _free_level(st[:, 1], None, V, clear)
         level = domain.to_param(np.array([[0.0, v0]]))[0][1 if domain.basis[1, 1] else 0]
         return {"flux": -sign * _period(domain, level)}
     # torus: seam s = 0 is the loop v -> (s0, v); seam v = 0 the loop s -> (s, v0)
-    s0 = _free_level(st[:, 0], S, S)
-    v0 = _free_level(st[:, 1], V, V)
-    ci, cj = domain.comps
+    s0 = _free_level(st[:, 0], S, S, _clearance(ci, cj))
+    v0 = _free_level(st[:, 1], V, V, _clearance(cj, ci))
     k1 = (winding_number(cj.deformed, ci.phi(s0), _polyline(cj, "deformed", ci, s0))
           - winding_number(cj.reference, ci.j(s0), _polyline(cj, "reference", ci, s0)))
     k2 = -(winding_number(ci.deformed, cj.phi(v0), _polyline(ci, "deformed", cj, v0))

@@ -541,3 +541,63 @@ def test_a_curve_to_the_diagonal_is_refined_with_its_end_slid_beside_a_small_loo
     assert abs(a.value - b.value) <= a.error_estimate + b.error_estimate
     for r in found:
         assert r.value - r.error_estimate <= min(a.upper_bound, b.upper_bound)
+
+
+def _touching_triangles(start: int = 0) -> direct.Scene:
+    """Two closed triangles, one edge of B lying on one edge of A, B outside A: they touch, they do not cross."""
+    RA = [[-997.0, 0.0], [-1001.5, 2.598076211353316], [-1001.5, -2.598076211353315]]
+    RB = np.array([[-1021.5, -2.598076211353315], [-1017.0, 0.0], [-1021.5, 2.598076211353316]])
+    B = np.array([[8, 8], [2.5, 5.5], [5.5, 2.5]], dtype=float)
+    return direct.Scene((direct.Component(RA, [[0, 0], [6, 2], [2, 6]], True, "A"),
+                         direct.Component(np.roll(RB, -start, 0), np.roll(B, -start, 0), True, "B")))
+
+
+@pytest.mark.parametrize("start", [0, 1, 2])
+def test_curves_that_touch_without_crossing_have_no_penalty(start):
+    """The seam's point fell on the stretch where the triangles touch: its winding number was rounding's choice
+    (J = 267 with 0 crossings, no warning) or a DegenerateError, depending on where B starts (a review)."""
+    sc = _touching_triangles(start)
+    assert direct.find_crossings(sc) == []
+    assert direct.penalty(sc).value == 0.0
+
+
+@pytest.mark.parametrize("deformed", [[[2, 7], [3, 5], [5, 3], [9, 1]], [[9, 1], [5, 3], [3, 5], [2, 7]],
+                                      [[2, 7], [2.25, 5.75], [5.5, 2.5], [8, 1]]])
+def test_an_interval_along_a_circles_edge_has_no_penalty(deformed):
+    """An interval runs along an edge of a triangle and leaves on the side it came from (J = 23 and 8.2 before)."""
+    tri = direct.Component([[-997.0, 0.0], [-1001.5, 2.598076211353316], [-1001.5, -2.598076211353315]],
+                           [[0, 0], [6, 2], [2, 6]], True, "A")
+    d = np.asarray(deformed, dtype=float)
+    ref = np.column_stack([np.concatenate([[0], np.cumsum(np.linalg.norm(np.diff(d, axis=0), axis=1))]),
+                           np.full(len(d), 1010.0)])
+    sc = direct.Scene((tri, direct.Component(ref, d, name="I")))
+    assert direct.find_crossings(sc) == []
+    assert direct.penalty(sc).value == 0.0
+
+
+def test_two_squares_overlapping_along_edges_do_not_depend_on_where_one_starts():
+    """The seam point of B at one start lay on A's edge: a DegenerateError the rule did not call for (a review)."""
+    def poly(n, cx):
+        a = 2 * np.pi * np.arange(n) / n
+        return np.column_stack([3 * np.cos(a) + cx, 3 * np.sin(a)])
+
+    A, B = [[0, 0], [2, 0], [2, 2], [0, 2]], [[1, 0], [3, 0], [3, 1], [1, 1]]
+    found = [direct.penalty(direct.Scene((direct.Component(poly(4, -1000.0), A, True, "A"),
+                                          direct.Component(np.roll(poly(4, -1020.0), -s, 0), np.roll(B, -s, 0),
+                                                           True, "B"))))
+             for s in range(4)]
+    for r in found:
+        assert len(r.crossings) == 2
+        assert abs(r.value - found[0].value) <= r.error_estimate + found[0].error_estimate
+
+
+@pytest.mark.parametrize("turn", [0, 1])
+def test_a_spike_on_a_circle_is_refused_not_guessed(turn):
+    """A square with a segment traversed out and back: J was 0 or 14.5 depending on a rotation (a review)."""
+    a = 2 * np.pi * np.arange(7) / 7
+    ref = np.column_stack([3 * np.cos(a) - 1000.0, 3 * np.sin(a)])
+    d = np.array([[0, 0], [2, 0], [2, 1], [3, 1], [2, 1], [2, 2], [0, 2]], dtype=float)
+    if turn:
+        ref, d = ref @ np.array([[0, 1], [-1, 0]]), d @ np.array([[0, 1], [-1, 0]])
+    with pytest.raises(direct.DegenerateError, match="turns exactly back on itself at vertex 3"):
+        direct.penalty(direct.Scene((direct.Component(ref, d, True, "S"),)))
