@@ -388,7 +388,9 @@ _MAX_POWER = 64.0
 
 def _checked_power(power) -> float:
     """``power`` as a float: a real number in ``(0, _MAX_POWER]``, else a DirectError that says what is accepted."""
-    if isinstance(power, (bool, np.bool_)) or not isinstance(power, (numbers.Real, np.floating, np.integer)):
+    if isinstance(power, np.ndarray) and power.ndim == 0:  # a numpy scalar held in a 0-d array
+        power = power[()]
+    if isinstance(power, (bool, np.bool_)) or not isinstance(power, numbers.Real):
         raise DirectError(f"power must be a real number, got {power!r} ({type(power).__name__})")
     value = float(power)
     if not (0.0 < value <= _MAX_POWER):

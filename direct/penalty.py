@@ -78,6 +78,7 @@ admissible deformation.
 
 from __future__ import annotations
 
+import numbers
 import time
 import warnings
 from dataclasses import dataclass, field
@@ -401,19 +402,29 @@ def _free_level(values: np.ndarray, period: float | None, length: float, clearan
         lo, hi = 0.0, length
     elif period is None:
         lo, hi = 0.0, float(np.min(values))
-    else:
-        top = float(np.max(values))
-        lo, hi = (top, period + float(np.min(values))) if top < period else (0.0, float(np.min(values)))
-    if clearance is None:
-        return 0.5 * (lo + hi) if len(values) or period is None else 0.5 * length
+    else:  # the gap across 0: from the largest value to the smallest one a period on (values lie in [0, period))
+        lo, hi = float(np.max(values)), period + float(np.min(values))
     levels = lo + (hi - lo) * (np.arange(_LEVEL_SAMPLES) + 0.5) / _LEVEL_SAMPLES
     if period is not None:
         levels = np.mod(levels, period)
-    return float(levels[int(np.argmax(clearance(levels)))])
+    if clearance is None:
+        return float(levels[_LEVEL_SAMPLES // 2])
+    room = clearance(levels)
+    best = int(np.argmax(room))
+    if not room[best] > _CLEAR * clearance.scale:
+        # every level of the gap lies where the curves touch: the winding number would be rounding's choice
+        raise DegenerateError(
+            f"{clearance.label} runs along {clearance.other} over the whole stretch between its crossings and its "
+            "end (or around the circle), touching it without crossing: the topological condition of this pair "
+            "cannot be read off a point of it. Move one of the two curves off the other along that stretch."
+        )
+    return float(levels[best])
 
 
 #: levels tried by _free_level for the one farthest from the other curve
 _LEVEL_SAMPLES = 65
+#: a level closer than this (relative to the coordinates' size) to the other curve lies on it, up to rounding
+_CLEAR = 64 * np.finfo(float).eps
 
 
 def _distance_to_polyline(points: np.ndarray, vertices: np.ndarray, closed: bool) -> np.ndarray:
@@ -422,16 +433,27 @@ def _distance_to_polyline(points: np.ndarray, vertices: np.ndarray, closed: bool
     b = np.roll(a, -1, axis=0) if closed else a[1:]
     a = a if closed else a[:-1]
     d = b - a
-    dd = np.maximum((d * d).sum(axis=1), 1e-300)
+    dd = (d * d).sum(axis=1)
     rel = points[:, None, :] - a[None, :, :]
-    t = np.clip((rel * d[None]).sum(axis=2) / dd[None], 0.0, 1.0)
+    t = np.divide((rel * d[None]).sum(axis=2), dd[None], out=np.zeros(rel.shape[:2]), where=dd[None] > 0)
+    t = np.clip(t, 0.0, 1.0)
     gap = rel - t[..., None] * d[None]
     return np.sqrt((gap * gap).sum(axis=2)).min(axis=1)
 
 
 def _clearance(comp, other):
-    """Levels (``comp``'s reference arclength) -> distance of ``comp.phi(level)`` from ``other``'s deformed polyline."""
-    return lambda levels: _distance_to_polyline(comp.phi(levels), other.deformed, other.closed)
+    """Levels (``comp``'s reference arclength) -> distance of ``comp.phi(level)`` from ``other``'s deformed polyline.
+
+    The function carries ``scale`` (the size of the two deformed polylines' coordinates) and the names used in
+    :func:`_free_level`'s error.
+    """
+    def clearance(levels):
+        return _distance_to_polyline(comp.phi(levels), other.deformed, other.closed)
+
+    clearance.scale = max(float(np.abs(np.asarray(c.deformed, dtype=float)).max()) for c in (comp, other))
+    clearance.label = f"the deformed polyline of component {comp.name!r}"
+    clearance.other = f"that of component {other.name!r}"
+    return clearance
 
 
 def boundary_conditions(domain: Domain) -> dict[str, Any]:
@@ -648,7 +670,10 @@ def _family_shifts(domain: Domain) -> list[np.ndarray]:
     symmetry line of the polygon (its cells aligned with the vertices) is a
     critical point that doubling the segments does not move, with an estimate
     at rounding level.  Starts shifted by fractions of an edge (0.29 and 0.61:
-    not symmetric about a half edge) leave those lines.
+    not symmetric about a half edge) leave those lines.  The shifts back
+    (-0.29 and -0.61, that is 0.71 and 0.39 of an edge) mirror them about
+    the half edge: on a polygon symmetric about it they repeat the forward
+    starts, and are there for the curves that no symmetry ties (below).
 
     The vertex lines also make the length ripple along the family, with a
     local minimum about every edge, and the grid's stencil bias (a few per
@@ -722,7 +747,7 @@ def _slid_ends(domain: Domain, metric: Metric, keys: list, cache: dict, grid_cos
         if (u < ng) == (v < ng):
             continue
         a, g = (u, v) if v < ng else (v, u)
-        reach = grid_costs.get(k, np.inf)
+        reach = grid_costs[k]
         shallow = [p for p in range(ng, ng + len(domain.points)) if p != a
                    and min(grid_costs.get((p, g), np.inf), grid_costs.get((g, p), np.inf)) <= _SHALLOW * reach]
         if not shallow:
@@ -735,7 +760,8 @@ def _slid_ends(domain: Domain, metric: Metric, keys: list, cache: dict, grid_cos
         chord = float(np.linalg.norm(X[-1] - X[0]))
         for p in shallow:
             x1, x2 = domain.points[p - ng]
-            for target in (x1, 0.5 * (x1 + x2), x2):  # the diagonal beside the point: s = x1 = x2 there
+            gap = x2 - x1 - S * np.round((x2 - x1) / S)  # the point's offset from the diagonal, the nearer way
+            for target in (x1, x1 + 0.5 * gap, x1 + gap):  # the diagonal beside the point: s = x1 = x2 there
                 shift = target - end_s
                 shift -= S * np.round(shift / S)  # the nearer way round
                 if abs(shift) > _SLIDE_REACH * chord:  # a point far along the diagonal: another basin altogether
@@ -753,37 +779,42 @@ def _slid_ends(domain: Domain, metric: Metric, keys: list, cache: dict, grid_cos
     return {k: rp for k, rp in best.items() if rp.length < cache[k].length}
 
 
-def _rounding_errors(domain: Domain, metric: Metric, curves: list, scale: float) -> np.ndarray:
-    """Bounds on the rounding error of each curve's length: ``(m,)``, in the units of the lengths.
+def _rounding_errors(domain: Domain, metric: Metric, curves: list) -> tuple[np.ndarray, np.ndarray]:
+    """Bounds on the rounding errors of each curve's length: ``(of r, of the sums)``, each ``(m,)``, length units.
 
-    ``r = phi(x1) - phi(x2)`` is formed from deformed coordinates as large as
-    ``scale``, so it carries an absolute error of a few ``eps * scale``; the
+    ``r = phi(x1) - phi(x2)`` is formed from the deformed coordinates of the
+    domain's two components, as large as ``scale``, so it carries an absolute error of a few ``eps * scale``; the
     length of a curve weighs ``|r|`` to the metric's ``order``.  Along a curve
     on which ``|r|`` grows to ``R``, the relative error of the length is
     then about ``(order + 1) delta / R``; this takes ``2 (order + 1) eps scale
     / R`` (``delta = 2 eps scale``).  Negligible for a scene at the origin
     (about 1e-15), it is what is left of the digits when the scene lies far
     from the origin (``cross60`` translated by 1e12: 1.8e-4 off, estimate
-    1.3e-6, before this term) or a crossing lies very close to the end of a
-    component (``cross(1e-12, 1, 1, 1)`` with ``g``: 1.5e-4 off; an
-    adversarial review).  Zero for a metric that does not weigh ``|r|``.
-    Every curve also gets ``_ARITHMETIC`` of its length for the rounding of
-    the sums themselves (the right angle with ``g``, computed exactly but for
-    rounding: 5.6e-16 off with an estimate of 2.8e-17 before these terms).
+    2.6e-6 relative, before this term) or a crossing lies very close to the
+    end of a component (``cross(1e-12, 1, 1, 1)`` with ``g``: 1.5e-4 off; an
+    adversarial review).  ``order`` is the metric's; a ``G``-family metric of
+    another ``h`` counts as order 4.  Zero for ``euclid``, which does not
+    weigh ``|r|``.  Every curve also gets ``_ARITHMETIC`` of its length for
+    the rounding of the sums themselves (the right angle with ``g``, computed
+    exactly but for rounding: 5.6e-16 off with an estimate of 2.8e-17 before
+    these terms).
     """
+    lengths = np.array([max(float(c[3]), 0.0) if np.isfinite(c[3]) else 0.0 for c in curves])
+    arithmetic = _ARITHMETIC * lengths
     out = np.zeros(len(curves))
-    if not float(metric.order) > 0:
-        return out + _ARITHMETIC * np.array([max(float(c[3]), 0.0) for c in curves])
+    order = float(metric.order) if float(metric.order) > 0 else (0.0 if metric.name == "euclid" else 4.0)
+    if not order > 0:
+        return out, arithmetic
     ci, cj = domain.comps
+    scale = max(float(np.abs(np.asarray(c.deformed, dtype=float)).max()) for c in (ci, cj))
     eps = np.finfo(float).eps
     for k, c in enumerate(curves):
-        path, length = np.asarray(c[2], dtype=float), float(c[3])
-        if not (length > 0 and np.isfinite(length)):
+        path = np.asarray(c[2], dtype=float)
+        if not lengths[k] > 0:
             continue
         reach = float(np.linalg.norm(ci.phi(path[:, 0]) - cj.phi(path[:, 1]), axis=-1).max())
-        relative = 2.0 * (float(metric.order) + 1.0) * eps * scale / reach + _ARITHMETIC if reach > 0 else 1.0
-        out[k] = length * min(1.0, relative)
-    return out
+        out[k] = lengths[k] * (min(1.0, 2.0 * (order + 1.0) * eps * scale / reach) if reach > 0 else 1.0)
+    return out, arithmetic
 
 
 def _best_of_starts(found: list[RefinedPath]) -> RefinedPath:
@@ -812,6 +843,7 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
     # geodesic the figure eight settles in (fig10 at 128 cells: 6.2e-5 higher than every other grid, beyond the
     # estimate of 1.8e-5, and twice as slow), so domains with a circle keep the uniform grid
     coarsen = settings["coarsen"] if domain.kind in ("rect", "triangle") else 1
+    slid: set = set()  # entries refined again with their end slid along the diagonal (_slid_ends)
     graph = build_graph(domain, metric, settings["resolution"], settings["neighbours"], coarsen=coarsen)
     ng = domain.n_grounds
     pos = np.flatnonzero(domain.signs > 0)
@@ -962,7 +994,6 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
             return out
 
         second: dict = {}
-        slid: set = set()  # entries refined again with their end slid along the diagonal (_slid_ends)
 
         def _second_routes(keys, cache):
             # the chosen curves' routes on a second grid (three quarters of the step): where a crease of the metric
@@ -1038,6 +1069,7 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
         if loose:
             atol = loose_atol
             stale = set(loose)
+            slid.difference_update(stale)  # refined afresh from the grid: slid again
             value, chosen, cache = _settle(grid_costs, solve, refine_keys, bias, finish,
                                            cache={k: v for k, v in cache.items() if k not in stale},
                                            finished={k for k, _ in chosen if k not in stale}, complete=complete)
@@ -1235,6 +1267,16 @@ def second_resolution(resolution: int) -> int:
 _SCALE_RANGE = (-250.0, 250.0)
 
 
+def _degree(met) -> float:
+    """The power of the deformed scene's size by which ``J`` scales: ``q + 1`` for ``G``, ``2 p`` for ``g``.
+
+    ``g``'s length element is in the reference arclength, which a rescaling
+    of the deformation leaves alone; ``G``'s and ``euclid``'s are in the
+    deformed one.
+    """
+    return float(met.order) if met.name == "g" else float(met.order) + 1.0
+
+
 def _check_scale(scene: Scene, met) -> None:
     """Refuse a scene whose lengths would overflow or underflow in floating point (see ``_SCALE_RANGE``).
 
@@ -1245,7 +1287,7 @@ def _check_scale(scene: Scene, met) -> None:
     extent = float(np.ptp(pts, axis=0).max()) if len(pts) else 0.0
     if not extent > 0.0:
         return
-    degree = float(met.order) + 1.0
+    degree = _degree(met)
     size = degree * np.log10(extent)
     lo, hi = _SCALE_RANGE
     if not lo <= size <= hi:
@@ -1272,7 +1314,8 @@ def _penalty(scene, metric, power, tol, resolution, neighbours, backend, refine,
     met = get_metric(metric, power)
     if not (0 < tol < 1):
         raise DirectError(f"tol must be in (0, 1), got {tol!r}")
-    if isinstance(resolution, bool) or not float(resolution).is_integer() or int(resolution) < 4:
+    if (isinstance(resolution, (bool, np.bool_)) or not isinstance(resolution, (numbers.Real, np.ndarray))
+            or np.ndim(resolution) != 0 or not float(resolution).is_integer() or int(resolution) < 4):
         raise DirectError(f"resolution must be a whole number of grid cells, at least 4, got {resolution!r}")
     if backend not in ("scipy", "networkx"):
         raise DirectError(f"backend must be 'scipy' or 'networkx', got {backend!r}")
@@ -1297,8 +1340,6 @@ def _penalty(scene, metric, power, tol, resolution, neighbours, backend, refine,
     crossings = find_crossings(scene)
     names = [c.name for c in scene.components]
     total = grid_total = err_total = rounding_total = 0.0
-    # the size of the deformed coordinates, whose rounding enters r = phi(x1) - phi(x2) (see _rounding_errors)
-    digits_scale = max(float(np.abs(np.asarray(c.deformed, dtype=float)).max()) for c in scene.components)
     pairs: list[Pair] = []
     for dom in domains(scene, crossings):
         if len(dom.points) == 0 and not any(boundary_conditions(dom).values()):
@@ -1323,11 +1364,12 @@ def _penalty(scene, metric, power, tol, resolution, neighbours, backend, refine,
         if again:  # domain solves, for the record
             settings["refined_again"] = settings.get("refined_again", 0) + int(again)
         m = dom.multiplicity
-        rounding = _rounding_errors(dom, met, curves, digits_scale)
+        of_r, of_sums = _rounding_errors(dom, met, curves)
+        rounding = of_r + of_sums
         total += m * value
         grid_total += m * grid_value
         err_total += m * (err + float(rounding.sum()))
-        rounding_total += m * float(rounding.sum())
+        rounding_total += m * float(of_r.sum())
         ni, nj = names[dom.pair[0]], names[dom.pair[1]]
         exact = polyline_lengths(dom, met, [c[2] for c in curves])
         for (start, end, path, length, perr, closed), plen, rerr in zip(curves, exact.tolist(), rounding.tolist()):
@@ -1363,17 +1405,16 @@ def _penalty(scene, metric, power, tol, resolution, neighbours, backend, refine,
         warnings.warn(
             f"J = {total:.3g} with {len(crossings)} crossing(s): the lengths of their curves fall below the "
             "smallest normal floating-point number (J > 0 for a transversal crossing). Rescale the deformed "
-            f"coordinates (J^{met.name} scales as the power {float(met.order) + 1:g} of the size), or lower the power.",
+            f"coordinates (J^{met.name} scales as the power {_degree(met):g} of the size), or lower the power.",
             ToleranceWarning,
             stacklevel=3,
         )
     elif refine and rounding_total > 0.5 * err_total > 0.5 * tol * max(total, 0.0):
         warnings.warn(
             f"J = {total:.7g} has an error estimate of {err_total:.2g}, above the requested tol={tol:g}, mostly "
-            f"from rounding: r = phi(x1) - phi(x2) is formed from deformed coordinates as large as "
-            f"{digits_scale:.3g}, and its curves reach only a small fraction of that (a scene far from the origin, "
-            "or a crossing very close to the end of a component). Translate the scene to the origin, or read the "
-            "value with its error_estimate.",
+            "from rounding: r = phi(x1) - phi(x2) is formed from deformed coordinates much larger than the "
+            "curves reach (a scene far from the origin, or a crossing very close to the end of a component). "
+            "Translate the scene to the origin, or read the value with its error_estimate.",
             ToleranceWarning,
             stacklevel=3,
         )

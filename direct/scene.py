@@ -343,7 +343,7 @@ class Scene:
                 f"with_deformed got {len(deformed)} deformed polylines for the {len(self.components)} components "
                 f"{[c.name for c in self.components]}: give one per component, in order."
             )
-        comps = [Component(c.reference, d, c.closed, c.name) for c, d in zip(self.components, deformed, strict=True)]
+        comps = [Component(c.reference, d, c.closed, c.name) for c, d in zip(self.components, deformed)]
         return Scene(tuple(comps), name=self.name)
 
     def __repr__(self) -> str:

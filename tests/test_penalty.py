@@ -467,6 +467,24 @@ def test_a_scene_far_from_the_origin_says_what_rounding_costs(offset, warns):
     assert any("rounding" in str(w.message) for w in caught) == warns
 
 
+def test_rounding_counts_per_domain_and_for_any_h():
+    """A far component that crosses nothing no longer inflates the estimate of the others (it did, with a
+    warning to translate the scene); a G-family metric of another h counts its rounding too (it counted none)."""
+    from direct.metric import GFamily
+
+    far = direct.Component([[0, 50], [1, 50]], [[1e12, 1e12], [1e12 + 1, 1e12]], name="far")
+    near = direct.scenes.get("cross")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", direct.ToleranceWarning)
+        both = direct.penalty(direct.Scene(tuple(near.components) + (far,)), tol=1e-5)
+    assert both.value == direct.penalty(near, tol=1e-5).value and both.error_estimate < 1e-12 * both.value
+    base = direct.penalty("cross60", GFamily(h=lambda s: s * s), tol=1e-5)
+    with pytest.warns(direct.ToleranceWarning, match="rounding"):
+        res = direct.penalty(rigid(direct.scenes.get("cross60"), 0.0, (1e12, -1e12)), GFamily(h=lambda s: s * s),
+                             tol=1e-5)
+    assert abs(res.value - base.value) <= res.error_estimate + base.error_estimate
+
+
 def test_a_crossing_next_to_an_end_says_what_rounding_costs():
     """A right angle rotated by 0.3 rad, its crossing 1e-11 from an end: 8.4e-6 off with an estimate of 1e-7.
 
