@@ -152,11 +152,7 @@ class Component:
         (..., 2) ndarray of float
             Deformed positions.
         """
-        s = np.asarray(s, dtype=float)
-        if self.closed:
-            s = np.mod(s, self.length)
-        k = self.segment_index(s)
-        return self.deformed_ring[k] + (s - self.params[k])[..., None] * self.velocities[k]
+        return self._along(self.deformed_ring, self.velocities, s)
 
     def j(self, s: np.ndarray) -> np.ndarray:
         """Evaluate the reference embedding at reference arclength ``s``.
@@ -171,12 +167,15 @@ class Component:
         (..., 2) ndarray of float
             Reference positions.
         """
+        return self._along(self.reference_ring, np.diff(self.reference_ring, axis=0) / self.segment_lengths[:, None], s)
+
+    def _along(self, ring: np.ndarray, speeds: np.ndarray, s) -> np.ndarray:
+        """The polyline ``ring`` (closing vertex included) at reference arclength ``s``, with per-segment ``speeds``."""
         s = np.asarray(s, dtype=float)
         if self.closed:
             s = np.mod(s, self.length)
         k = self.segment_index(s)
-        t = np.diff(self.reference_ring, axis=0) / self.segment_lengths[:, None]
-        return self.reference_ring[k] + (s - self.params[k])[..., None] * t[k]
+        return ring[k] + (s - self.params[k])[..., None] * speeds[k]
 
     def reversed(self) -> "Component":
         """The same component with its orientation reversed (reference and deformation)."""
