@@ -21,8 +21,12 @@ def _label(name: str) -> str:
     return f"component {name!r}" if name else "component"
 
 
-def _is_number(x: Any) -> bool:
-    """A real number (int, float, Fraction, numpy scalar, 0-d array), not a bool or a string."""
+def is_real_number(x: Any) -> bool:
+    """A real number (int, float, Fraction, numpy scalar, 0-d array), not a bool or a string.
+
+    Used for vertex coordinates, and for ``power`` and ``resolution`` (:mod:`direct.metric`,
+    :mod:`direct.penalty`).
+    """
     if isinstance(x, (bool, np.bool_, str, bytes)):
         return False
     return isinstance(x, numbers.Real) or (isinstance(x, np.ndarray) and x.ndim == 0 and x.dtype.kind in "iuf")
@@ -43,7 +47,7 @@ def _check_vertex_list(a: Any, what: str, label: str) -> None:
         if isinstance(v, np.ndarray) and v.dtype.kind in "iuf" and v.ndim == 1:
             sizes.add(len(v))
             continue
-        if not (isinstance(v, (list, tuple, np.ndarray)) and all(_is_number(x) for x in v)):
+        if not (isinstance(v, (list, tuple, np.ndarray)) and all(is_real_number(x) for x in v)):
             raise SceneError(f"{label}: {what} vertex {k} is {v!r}; each vertex must be a pair [x, y] of numbers")
         sizes.add(len(v))
     if len(sizes) > 1:  # ragged: name the first vertex that is not a pair

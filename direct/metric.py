@@ -37,7 +37,6 @@ in closed form when ``rho(s) = s`` (``G`` with ``q = 2``, ``g`` with ``p = 1``).
 
 from __future__ import annotations
 
-import numbers
 import weakref
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
@@ -46,6 +45,7 @@ from typing import Callable, Literal
 
 import numpy as np
 
+from .checks import is_real_number
 from .errors import DirectError
 
 __all__ = ["Metric", "GFamily", "G", "g", "Euclid", "get_metric", "segment_lengths", "MetricName"]
@@ -371,9 +371,9 @@ def get_metric(metric: "str | Metric" = "G", power: float | None = None) -> Metr
     if power is not None:
         power = _checked_power(power)
     if metric == "G":
-        return G(q=2.0 if power is None else float(power))
+        return G(q=2.0 if power is None else power)
     if metric == "g":
-        return g(p=2.0 if power is None else float(power))
+        return g(p=2.0 if power is None else power)
     if metric == "euclid":
         if power is not None:
             raise DirectError("the euclid metric takes no power; use metric 'G' or 'g' with a power")
@@ -388,9 +388,7 @@ _MAX_POWER = 64.0
 
 def _checked_power(power) -> float:
     """``power`` as a float: a real number in ``(0, _MAX_POWER]``, else a DirectError that says what is accepted."""
-    if isinstance(power, np.ndarray) and power.ndim == 0:  # a numpy scalar held in a 0-d array
-        power = power[()]
-    if isinstance(power, (bool, np.bool_)) or not isinstance(power, numbers.Real):
+    if not is_real_number(power):
         raise DirectError(f"power must be a real number, got {power!r} ({type(power).__name__})")
     value = float(power)
     if not (0.0 < value <= _MAX_POWER):

@@ -78,15 +78,16 @@ admissible deformation.
 
 from __future__ import annotations
 
-import numbers
 import time
 import warnings
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+import shapely
 from threadpoolctl import ThreadpoolController
 
+from .checks import is_real_number
 from .crossings import Crossing, find_crossings
 from .errors import DegenerateError, DegenerateMetricWarning, DirectError, SceneError, ToleranceWarning
 from .geodesics import Backend, closed_curve_bounds, closed_curve_distances, grid_distances, torus_distances
@@ -385,18 +386,20 @@ def _polyline(comp, which: str, other=None, level: float | None = None) -> str:
     return out
 
 
-def _free_level(values: np.ndarray, period: float | None, length: float, clearance=None) -> float:
+def _free_level(values: np.ndarray, period: float | None, length: float, on=None, other=None) -> float:
     """A level in the gap of ``values`` that contains 0 (periodic) or below all of them (not periodic).
 
     Every level of the gap gives the same loop class, hence the same period
     of eq. (6), as long as the point it puts on one curve is off the other.
-    With ``clearance`` (levels -> distance of that point from the other
-    curve), the level is the one of ``_LEVEL_SAMPLES`` spread over the gap
-    that lies farthest from the other curve: a level on a stretch where the
-    two curves touch without crossing made the winding number a matter of
-    rounding (touching triangles: 0 crossings and ``J = 267`` with no
-    warning; an adversarial review), or raised a DegenerateError that
-    depended only on which vertex a closed curve started at.
+    With ``on`` and ``other`` (components: the level is a reference
+    arclength of ``on``), the level is the one of ``_LEVEL_SAMPLES`` spread
+    over the gap whose deformed point ``on.phi(level)`` lies farthest from
+    ``other``'s deformed polyline: a level on a stretch where the two curves
+    touch without crossing made the winding number a matter of rounding
+    (touching triangles: 0 crossings and ``J = 267`` with no warning; an
+    adversarial review), or raised a DegenerateError that depended only on
+    which vertex a closed curve started at.  Where every level of the gap
+    lies on the other curve, the DegenerateError stands.
     """
     if len(values) == 0:
         lo, hi = 0.0, length
@@ -407,16 +410,19 @@ def _free_level(values: np.ndarray, period: float | None, length: float, clearan
     levels = lo + (hi - lo) * (np.arange(_LEVEL_SAMPLES) + 0.5) / _LEVEL_SAMPLES
     if period is not None:
         levels = np.mod(levels, period)
-    if clearance is None:
+    if on is None:
         return float(levels[_LEVEL_SAMPLES // 2])
-    room = clearance(levels)
+    curve = (shapely.linearrings if other.closed else shapely.linestrings)(np.asarray(other.deformed, dtype=float))
+    room = shapely.distance(shapely.points(on.phi(levels)), curve)
     best = int(np.argmax(room))
-    if not room[best] > _CLEAR * clearance.scale:
+    scale = max(float(np.abs(np.asarray(c.deformed, dtype=float)).max()) for c in (on, other))
+    if not room[best] > _CLEAR * scale:
         # every level of the gap lies where the curves touch: the winding number would be rounding's choice
         raise DegenerateError(
-            f"{clearance.label} runs along {clearance.other} over the whole stretch between its crossings and its "
-            "end (or around the circle), touching it without crossing: the topological condition of this pair "
-            "cannot be read off a point of it. Move one of the two curves off the other along that stretch."
+            f"the deformed polyline of component {on.name!r} runs along that of component {other.name!r} over the "
+            "whole stretch between its crossings and its end (or around the circle), touching it without crossing: "
+            "the topological condition of this pair cannot be read off a point of it. Move one of the two curves "
+            "off the other along that stretch."
         )
     return float(levels[best])
 
@@ -425,35 +431,6 @@ def _free_level(values: np.ndarray, period: float | None, length: float, clearan
 _LEVEL_SAMPLES = 65
 #: a level closer than this (relative to the coordinates' size) to the other curve lies on it, up to rounding
 _CLEAR = 64 * np.finfo(float).eps
-
-
-def _distance_to_polyline(points: np.ndarray, vertices: np.ndarray, closed: bool) -> np.ndarray:
-    """Euclidean distance from each point to a polyline (closed: the last vertex joined to the first)."""
-    a = np.asarray(vertices, dtype=float)
-    b = np.roll(a, -1, axis=0) if closed else a[1:]
-    a = a if closed else a[:-1]
-    d = b - a
-    dd = (d * d).sum(axis=1)
-    rel = points[:, None, :] - a[None, :, :]
-    t = np.divide((rel * d[None]).sum(axis=2), dd[None], out=np.zeros(rel.shape[:2]), where=dd[None] > 0)
-    t = np.clip(t, 0.0, 1.0)
-    gap = rel - t[..., None] * d[None]
-    return np.sqrt((gap * gap).sum(axis=2)).min(axis=1)
-
-
-def _clearance(comp, other):
-    """Levels (``comp``'s reference arclength) -> distance of ``comp.phi(level)`` from ``other``'s deformed polyline.
-
-    The function carries ``scale`` (the size of the two deformed polylines' coordinates) and the names used in
-    :func:`_free_level`'s error.
-    """
-    def clearance(levels):
-        return _distance_to_polyline(comp.phi(levels), other.deformed, other.closed)
-
-    clearance.scale = max(float(np.abs(np.asarray(c.deformed, dtype=float)).max()) for c in (comp, other))
-    clearance.label = f"the deformed polyline of component {comp.name!r}"
-    clearance.other = f"that of component {other.name!r}"
-    return clearance
 
 
 def boundary_conditions(domain: Domain) -> dict[str, Any]:
@@ -489,16 +466,15 @@ def boundary_conditions(domain: Domain) -> dict[str, Any]:
     sign = round(float(np.linalg.det(domain.basis)))
     ci, cj = domain.comps
     if kind in ("cylinder", "annulus"):
-        clear = None
+        on = other = None
         if kind == "cylinder":  # the interval's point at the level, away from the circle
-            interval, circle = (cj, ci) if ci.closed else (ci, cj)
-            clear = _clearance(interval, circle)
-        v0 = _free_level(st[:, 1], None, V, clear)
+            on, other = (cj, ci) if ci.closed else (ci, cj)
+        v0 = _free_level(st[:, 1], None, V, on, other)
         level = domain.to_param(np.array([[0.0, v0]]))[0][1 if domain.basis[1, 1] else 0]
         return {"flux": -sign * _period(domain, level)}
     # torus: seam s = 0 is the loop v -> (s0, v); seam v = 0 the loop s -> (s, v0)
-    s0 = _free_level(st[:, 0], S, S, _clearance(ci, cj))
-    v0 = _free_level(st[:, 1], V, V, _clearance(cj, ci))
+    s0 = _free_level(st[:, 0], S, S, ci, cj)
+    v0 = _free_level(st[:, 1], V, V, cj, ci)
     k1 = (winding_number(cj.deformed, ci.phi(s0), _polyline(cj, "deformed", ci, s0))
           - winding_number(cj.reference, ci.j(s0), _polyline(cj, "reference", ci, s0)))
     k2 = -(winding_number(ci.deformed, cj.phi(v0), _polyline(ci, "deformed", cj, v0))
@@ -773,7 +749,7 @@ def _slid_ends(domain: Domain, metric: Metric, keys: list, cache: dict, grid_cos
     found: dict = {}
     for k, rp in zip(owner, refine_many(domain, metric, jobs, tol=tol, atol=atol)):
         if k[0] < ng:  # from the boundary to a point: the curve runs backwards
-            rp = RefinedPath(rp.points[::-1].copy(), rp.length, rp.upper, rp.error_estimate, rp.segments)
+            rp = rp.reversed()
         found.setdefault(k, []).append(rp)
     best = {k: min(rps, key=lambda rp: rp.length) for k, rps in found.items()}
     return {k: rp for k, rp in best.items() if rp.length < cache[k].length}
@@ -968,9 +944,7 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
                     out[n] = rp
             for n, (u, v) in enumerate(keys):
                 if (u < ng) != (v < ng) and u < ng:  # from the boundary to a point: the curve runs backwards
-                    rp = out[n]
-                    out[n] = RefinedPath(rp.points[::-1].copy(), rp.length, rp.upper, rp.error_estimate,
-                                         rp.segments)
+                    out[n] = out[n].reversed()
             return out
 
         def finish(keys, cache):
@@ -1035,7 +1009,7 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
             found: dict = {}
             for (k, _), rp in zip(todo, refine_many(domain, metric, [job for _, job in todo], tol=tol, atol=atol)):
                 if k[0] < ng <= k[1]:  # from the boundary to a point: the curve runs backwards
-                    rp = RefinedPath(rp.points[::-1].copy(), rp.length, rp.upper, rp.error_estimate, rp.segments)
+                    rp = rp.reversed()
                 found.setdefault(k, []).append(rp)
             return {k: _best_of_starts([cache[k]] + rps) for k, rps in found.items()}
 
@@ -1261,7 +1235,6 @@ def second_resolution(resolution: int) -> int:
     return (3 * int(resolution)) // 4 if resolution >= _DEFAULT_RESOLUTION else _DEFAULT_RESOLUTION
 
 
-
 #: the range of ``log10(extent ** (order + 1))`` (deformed extent in length units, ``order`` the metric's power of
 #: ``|r|``): the scale of the lengths, within which they neither overflow nor lose their digits to underflow
 _SCALE_RANGE = (-250.0, 250.0)
@@ -1314,8 +1287,7 @@ def _penalty(scene, metric, power, tol, resolution, neighbours, backend, refine,
     met = get_metric(metric, power)
     if not (0 < tol < 1):
         raise DirectError(f"tol must be in (0, 1), got {tol!r}")
-    if (isinstance(resolution, (bool, np.bool_)) or not isinstance(resolution, (numbers.Real, np.ndarray))
-            or np.ndim(resolution) != 0 or not float(resolution).is_integer() or int(resolution) < 4):
+    if not is_real_number(resolution) or not float(resolution).is_integer() or int(resolution) < 4:
         raise DirectError(f"resolution must be a whole number of grid cells, at least 4, got {resolution!r}")
     if backend not in ("scipy", "networkx"):
         raise DirectError(f"backend must be 'scipy' or 'networkx', got {backend!r}")

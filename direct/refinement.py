@@ -82,6 +82,10 @@ class RefinedPath:
     error_estimate: float
     segments: int
 
+    def reversed(self) -> "RefinedPath":
+        """The same geodesic run the other way (its points reversed, a copy)."""
+        return RefinedPath(self.points[::-1].copy(), self.length, self.upper, self.error_estimate, self.segments)
+
 
 def _resample(poly: np.ndarray, n: int) -> np.ndarray:
     """``n + 1`` points evenly spaced by Euclidean arclength along a polyline."""

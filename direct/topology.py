@@ -56,17 +56,12 @@ def turning_number(vertices: np.ndarray, label: str = "the closed polyline") -> 
     >>> turning_number([[0, 0], [0, 1], [1, 1], [1, 0]])
     -1
     """
-    v = np.asarray(vertices, dtype=float)
-    e = np.roll(v, -1, axis=0) - v
-    e = e[np.hypot(e[:, 0], e[:, 1]) > 0]
+    _, e, cross, dot = _turns(vertices)
     if len(e) < 2:
         raise DegenerateError(
             f"{label} has fewer than two segments of positive length: no turning number; give it at least two "
             "distinct vertices"
         )
-    e_next = np.roll(e, -1, axis=0)
-    cross = e[:, 0] * e_next[:, 1] - e[:, 1] * e_next[:, 0]
-    dot = (e * e_next).sum(axis=1)
     ang = np.arctan2(cross, dot)
     back = (cross == 0) & (dot < 0)  # exact reversal: +-pi decided by the perturbation
     if back.any():
@@ -95,17 +90,26 @@ def exact_reversals(vertices: np.ndarray) -> np.ndarray:
     ndarray of int
         The indices (into ``vertices``) of the tips, in order.
     """
+    keep, e, cross, dot = _turns(vertices)
+    if len(e) < 2:
+        return np.empty(0, dtype=int)
+    tips = np.roll(keep, -1)[(cross == 0) & (dot < 0)]  # the vertex that starts the next kept segment
+    return np.sort(tips)
+
+
+def _turns(vertices: np.ndarray):
+    """The segments of positive length of a closed polyline and the turn from each to the next.
+
+    Returns ``(keep, e, cross, dot)``: the indices of the segments kept
+    (segment ``k`` runs from vertex ``k`` to ``k + 1``), their vectors, and
+    the cross and dot products of each with the next kept one.
+    """
     v = np.asarray(vertices, dtype=float)
     e = np.roll(v, -1, axis=0) - v
     keep = np.flatnonzero(np.hypot(e[:, 0], e[:, 1]) > 0)
-    if len(keep) < 2:
-        return np.empty(0, dtype=int)
     e = e[keep]
     e_next = np.roll(e, -1, axis=0)
-    cross = e[:, 0] * e_next[:, 1] - e[:, 1] * e_next[:, 0]
-    dot = (e * e_next).sum(axis=1)
-    tips = np.roll(keep, -1)[(cross == 0) & (dot < 0)]  # the vertex that starts the next kept segment
-    return np.sort(tips)
+    return keep, e, e[:, 0] * e_next[:, 1] - e[:, 1] * e_next[:, 0], (e * e_next).sum(axis=1)
 
 
 def winding_number(vertices: np.ndarray, point: np.ndarray, label: str = "the closed polyline") -> int:
