@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import csv
 import json
 import os
 import subprocess
@@ -30,6 +29,7 @@ import sys
 import tempfile
 
 import numpy as np
+from study import write_csv
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
@@ -113,10 +113,7 @@ def main(argv=None) -> int:
                 for scene, (sec, value, est) in run(tree, args.repeat, args.family, args.tol).items():
                     rows.append(dict(round=r, version=label, scene=scene, seconds=sec, value=value,
                                      error_estimate=est))
-    with open(os.path.join(HERE, args.csv), "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
-        w.writeheader()
-        w.writerows(rows)
+    write_csv(rows, os.path.join(HERE, args.csv))
     print(f"old = {args.rev}, new = working tree, tol={args.tol:g}; median over {args.rounds} rounds of the best of "
           f"{args.repeat} calls")
     for scene in dict.fromkeys(r["scene"] for r in rows):

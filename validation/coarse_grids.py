@@ -15,10 +15,11 @@ Writes ``coarse_grids.csv`` beside this file and prints the uncovered rows.
 
 from __future__ import annotations
 
-import csv
 import os
 import time
 import warnings
+
+from study import write_csv
 
 import direct
 
@@ -63,10 +64,7 @@ def main() -> list[dict]:
                           f"{res.error_estimate / scale:.1e} + reference {ref_estimate / scale:.1e}"
                           f"{' (warned)' if warned else ''}", flush=True)
             print(f"{name:10s} {metric} done", flush=True)
-    with open(os.path.join(HERE, "coarse_grids.csv"), "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
-        w.writeheader()
-        w.writerows(rows)
+    write_csv(rows, os.path.join(HERE, "coarse_grids.csv"))
     n_unc = sum(r["uncovered"] for r in rows)
     silent = [r for r in rows if r["uncovered"] and not r["warned"]]
     print(f"{len(rows)} rows; {n_unc} uncovered ({len(silent)} without a warning); largest relative error "

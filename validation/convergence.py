@@ -11,12 +11,12 @@ the ratios, the machines are shared).
 
 from __future__ import annotations
 
-import csv
 import os
 import sys
 import time
 
 import numpy as np
+from study import write_csv
 
 import direct
 
@@ -55,10 +55,7 @@ def main() -> list[dict]:
             rows.append(dict(case=name, method="refined", tol=tol, value=res.value,
                              rel_error=abs(res.value - exact) / exact, rel_estimate=res.error_estimate / exact,
                              seconds=dt))
-    with open(os.path.join(HERE, "convergence.csv"), "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
-        w.writeheader()
-        w.writerows(rows)
+    write_csv(rows, os.path.join(HERE, "convergence.csv"))
     _chart(rows)
     print("| case | tol | relative error | error_estimate / J | seconds |")
     print("|---|---|---|---|---|")

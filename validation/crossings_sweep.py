@@ -29,13 +29,13 @@ summary per family.
 
 from __future__ import annotations
 
-import csv
 import os
 import sys
 import time
 import warnings
 
 import numpy as np
+from study import write_csv
 
 import direct
 
@@ -137,10 +137,7 @@ def main(n: int = 40) -> list[dict]:
             for resolution in (64, 96, 128, 160):
                 _run(rows, "corner, tol 1e-3", case, scene, metric, ref, what, 1e-3, resolution=resolution,
                      second_pass=False)
-    with open(os.path.join(HERE, "crossings_sweep.csv"), "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
-        w.writeheader()
-        w.writerows(rows)
+    write_csv(rows, os.path.join(HERE, "crossings_sweep.csv"))
     for family in dict.fromkeys(r["family"] for r in rows):
         rs = [r for r in rows if r["family"] == family]
         failed = [r for r in rs if not r["passed"]]

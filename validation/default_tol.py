@@ -25,13 +25,13 @@ a summary per tolerance.
 
 from __future__ import annotations
 
-import csv
 import os
 import sys
 import time
 import warnings
 
 import numpy as np
+from study import write_csv
 
 import direct
 
@@ -83,10 +83,7 @@ def main(seeds=range(100, 300)) -> list[dict]:
                 print(f"seed {seed} tol {tol:g}: {r['relative_error']:+.1e} relative, estimate "
                       f"{r['relative_estimate']:.1e}{' (warned)' if warned else ''}, reference estimate "
                       f"{r['reference_relative_estimate']:.1e}{' (warned)' if ref_warned else ''}", flush=True)
-    with open(os.path.join(HERE, "default_tol.csv"), "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
-        w.writeheader()
-        w.writerows(rows)
+    write_csv(rows, os.path.join(HERE, "default_tol.csv"))
     for tol in TOLS:
         rs = [r for r in rows if r["tol"] == tol]
         err = np.array([abs(r["relative_error"]) for r in rs])

@@ -25,10 +25,11 @@ and prints a summary.
 
 from __future__ import annotations
 
-import csv
 import os
 import sys
 import warnings
+
+from study import write_csv
 
 import direct
 
@@ -70,10 +71,7 @@ def main(open_seeds=range(20), closed_seeds=range(12), tols=(1e-3, 1e-5)) -> lis
             print(f"{kind:9s} {seed:3d} tol={tol:g}: {res.value:.9g} (best of grids {best:.9g}), error "
                   f"{rows[-1]['relative_error']:.1e}, estimate {rows[-1]['relative_estimate']:.1e}"
                   f"{', warned' if warned else ''}{', OVER' if over else ''}", flush=True)
-    with open(os.path.join(HERE, "euclid.csv"), "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
-        w.writeheader()
-        w.writerows(rows)
+    write_csv(rows, os.path.join(HERE, "euclid.csv"))
     for tol in tols:
         sub = [r for r in rows if r["tol"] == tol]
         over = [r for r in sub if r["over_estimate"]]

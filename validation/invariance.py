@@ -47,11 +47,11 @@ a summary.
 
 from __future__ import annotations
 
-import csv
 import os
 import sys
 
 import numpy as np
+from study import write_csv
 
 import direct
 
@@ -139,10 +139,7 @@ def main(interval_seeds=range(100, 140), closed_seeds=range(20)) -> list[dict]:
             flags = [k for k in ("over_estimates", "silently_over", "beyond_tol", "warned") if r[k]]
             print(f"{family} {seed} {name}: difference {diff / base.value:+.1e}, estimates "
                   f"{allowed / base.value:.1e}, {base_sec:.2f} s / {sec:.2f} s {' '.join(flags)}", flush=True)
-    with open(os.path.join(HERE, "invariance.csv"), "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
-        w.writeheader()
-        w.writerows(rows)
+    write_csv(rows, os.path.join(HERE, "invariance.csv"))
     for family in ("intervals", "closed"):
         rs = [r for r in rows if r["family"] == family]
         ratio = max(abs(r["relative_difference"]) / r["relative_estimates"] for r in rs)

@@ -20,11 +20,12 @@ Writes ``low_resolution.csv`` beside this file and prints a summary.
 
 from __future__ import annotations
 
-import csv
 import os
 import sys
 import time
 import warnings
+
+from study import write_csv
 
 import direct
 
@@ -62,10 +63,7 @@ def main() -> list[dict]:
                 flags = [k for k in ("off", "provably_high", "warned") if r_[k]]
                 print(f"{name} at {res} cells: {diff / default.value:+.1e} (estimates {r_['relative_estimates']:.1e})"
                       f" {seconds:.2f} s {' '.join(flags)}", flush=True)
-    with open(os.path.join(HERE, "low_resolution.csv"), "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
-        w.writeheader()
-        w.writerows(rows)
+    write_csv(rows, os.path.join(HERE, "low_resolution.csv"))
     print(f"{len(rows)} runs on {len(scenes)} scenes at {RESOLUTIONS[0]} to {RESOLUTIONS[-1]} cells: "
           f"{sum(r['off'] for r in rows)} off from the default by more than the two estimates "
           f"({sum(r['off'] and not r['warned'] for r in rows)} without a warning), "

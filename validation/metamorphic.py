@@ -10,11 +10,11 @@ Writes ``metamorphic.csv`` beside this file.
 
 from __future__ import annotations
 
-import csv
 import os
 import sys
 
 import numpy as np
+from study import write_csv
 
 import direct
 
@@ -45,10 +45,7 @@ def main(seeds=range(100, 130)):
                              relative_change=rel, relative_estimate=base.error_estimate / base.value))
             if abs(v - base.value) > allowed:
                 bad.append(rows[-1])
-    with open(os.path.join(HERE, "metamorphic.csv"), "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
-        w.writeheader()
-        w.writerows(rows)
+    write_csv(rows, os.path.join(HERE, "metamorphic.csv"))
     worst = max(rows, key=lambda r: r["relative_change"])
     print(f"{len(rows)} comparisons on {len(rows) // 3} scenes; largest relative change {worst['relative_change']:.1e} "
           f"(seed {worst['seed']}, {worst['relation']})")

@@ -26,10 +26,11 @@ check of the chosen curves), ``multistart_tol0.001.csv``.  ``--metric g --power 
 
 from __future__ import annotations
 
-import csv
 import os
 import sys
 import time
+
+from study import write_csv
 
 import direct
 
@@ -63,10 +64,7 @@ def main(seeds=range(100, 140), tol: float = 1e-5, coarsens=(4,), out: str = "mu
         flag = "" if all(r["covered"] for r in last) else "  UNCOVERED"
         print(f"seed {seed}: " + ", ".join(f"{r['resolution']}/{r['coarsen']}: +{r['relative_above_best']:.1e} "
                                           f"(est {r['relative_estimate']:.0e})" for r in last) + flag, flush=True)
-    with open(os.path.join(HERE, out), "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
-        w.writeheader()
-        w.writerows(rows)
+    write_csv(rows, os.path.join(HERE, out))
     scenes = len(rows) // len(grids)
     for c in coarsens:
         sub = [r for r in rows if r["coarsen"] == c]

@@ -23,11 +23,11 @@ Writes ``random_closed.csv`` beside this file and prints a summary.
 
 from __future__ import annotations
 
-import csv
 import os
 import sys
 
 import numpy as np
+from study import write_csv
 
 import direct
 
@@ -77,10 +77,7 @@ def main(seeds=range(60)) -> list[dict]:
               f"error {r['relative_error']:+.1e}, estimate {r['relative_estimate']:.1e}, grid/J "
               f"{r['grid_over_value']:.1f}{', refined again' if r['refined_again'] else ''}"
               f"{', warned' if warned else ''}, {sec:.2f} s", flush=True)
-    with open(os.path.join(HERE, "random_closed.csv"), "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
-        w.writeheader()
-        w.writerows(rows)
+    write_csv(rows, os.path.join(HERE, "random_closed.csv"))
     n = len(rows)
     print(f"\n{n} scenes with crossings at tol={TOL:g} (hairpin and {n - 1} random): "
           f"{sum(r['over_estimate'] for r in rows)} over their estimate, "

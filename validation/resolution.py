@@ -9,11 +9,11 @@ different local geodesics (see the README's known limitations).
 
 from __future__ import annotations
 
-import csv
 import os
 import sys
 
 import numpy as np
+from study import write_csv
 
 import direct
 
@@ -43,10 +43,7 @@ def main():
                              seconds=res.seconds))
         values = "  ".join(f"{vals[r].value:.7f}" for r in (48, 96, 192))
         print(f"{name:24s} {values}  spread 96/192 {spread:.1e}", flush=True)
-    with open(os.path.join(HERE, "resolution.csv"), "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
-        w.writeheader()
-        w.writerows(rows)
+    write_csv(rows, os.path.join(HERE, "resolution.csv"))
 
 
 if __name__ == "__main__":

@@ -18,13 +18,13 @@ and prints a summary.
 
 from __future__ import annotations
 
-import csv
 import os
 import sys
 import time
 import warnings
 
 import numpy as np
+from study import write_csv
 
 import direct
 
@@ -59,10 +59,7 @@ def main(seeds=range(100, 300), tol: float = 1e-3) -> list[dict]:
             print(f"seed {seed}: single start {change:+.1e} relative (its estimate "
                   f"{r['relative_estimate_single']:.1e}); checked estimate {r['relative_estimate_checked']:.1e}",
                   flush=True)
-    with open(os.path.join(HERE, "route_check.csv"), "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
-        w.writeheader()
-        w.writerows(rows)
+    write_csv(rows, os.path.join(HERE, "route_check.csv"))
     changed = [r for r in rows if r["relative_change"] != 0.0]
     lower = [r for r in changed if r["relative_change"] < 0]
     silent = [r for r in rows if r["single_silently_off"]]

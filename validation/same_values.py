@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import csv
 import json
 import os
 import subprocess
@@ -34,6 +33,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
 sys.path.insert(0, HERE)
 from ab import worktree  # noqa: E402  (a checkout of a revision in a temporary git worktree)
+from study import write_csv  # noqa: E402
 
 FAMILIES = ("builtin", "intervals", "closed", "tori", "multistart")
 
@@ -168,10 +168,7 @@ def main(argv=None) -> list[dict]:
         rows = compare(_read(outs["old"]), _read(outs["new"]))
     if not rows:
         raise SystemExit("no call in common between the two runs")
-    with open(os.path.join(HERE, args.csv), "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
-        w.writeheader()
-        w.writerows(rows)
+    write_csv(rows, os.path.join(HERE, args.csv))
     print(f"{args.old} against {args.new or 'the working tree'}:")
     print(summary(rows))
     return rows

@@ -11,11 +11,12 @@ check alone lands above the second pass by more than its own ``error_estimate``.
 
 from __future__ import annotations
 
-import csv
 import os
 import sys
 import time
 import warnings
+
+from study import write_csv
 
 import direct
 
@@ -42,10 +43,7 @@ def main(seeds=range(100, 300)) -> list[dict]:
                          seconds_checked=t1 - t0, seconds_second=t2 - t1))
         print(f"seed {seed}: check alone {above:+.1e} relative above the second pass, its estimate "
               f"{rows[-1]['relative_estimate_checked']:.1e}", flush=True)
-    with open(os.path.join(HERE, "second_pass.csv"), "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
-        w.writeheader()
-        w.writerows(rows)
+    write_csv(rows, os.path.join(HERE, "second_pass.csv"))
     far = max(rows, key=lambda r: r["checked_above"] / r["relative_estimate_checked"])
     t_c = sum(r["seconds_checked"] for r in rows)
     t_s = sum(r["seconds_second"] for r in rows)

@@ -11,13 +11,13 @@ it).  Writes ``seed105.csv`` beside this file and prints the smallest value and 
 
 from __future__ import annotations
 
-import csv
 import os
 import sys
 import time
 import warnings
 
 import numpy as np
+from study import write_csv
 
 import direct
 from direct.metric import get_metric, segment_lengths
@@ -50,10 +50,7 @@ def main(tol: float = 1e-6, resolutions=range(64, 321, 16)) -> list[dict]:
             rows.append(dict(resolution=res, coarsen=coarsen, value=r.value, error_estimate=r.error_estimate,
                              upper=upper(scene, r), seconds=time.perf_counter() - t0))
             print(", ".join(f"{k} {v:.10g}" for k, v in rows[-1].items()), flush=True)
-    with open(os.path.join(HERE, "seed105.csv"), "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
-        w.writeheader()
-        w.writerows(rows)
+    write_csv(rows, os.path.join(HERE, "seed105.csv"))
     v = [r["value"] for r in rows]
     u = [r["upper"] for r in rows]
     print(f"{len(rows)} runs: values {min(v):.7f} to {max(v):.7f}; smallest upper bound {min(u):.7f}")

@@ -40,6 +40,7 @@ sys.path.insert(0, os.path.join(HERE, "..", "tests"))
 from conftest import study_scenes  # noqa: E402
 from default_tol import _solve as solve_recording_warnings  # noqa: E402
 from random_closed import random_closed  # noqa: E402
+from study import write_csv  # noqa: E402
 
 TOL = 1e-5
 
@@ -81,10 +82,7 @@ def main() -> list[dict]:
         flags = [k for k in ("over_estimate", "beyond_tol", "silently_off", "warned") if r[k]]
         print(f"{family} {seed}: {r['crossings']} crossings, error {err:+.1e}, estimate {est:.1e} "
               f"(reference {ref_est:.1e}), {sec:.2f} s {' '.join(flags)}", flush=True)
-    with open(os.path.join(HERE, "tol_1e5.csv"), "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
-        w.writeheader()
-        w.writerows(rows)
+    write_csv(rows, os.path.join(HERE, "tol_1e5.csv"))
     for family in ("intervals", "closed"):
         rs = [r for r in rows if r["family"] == family]
         t = np.array([r["seconds"] for r in rs])
