@@ -284,7 +284,7 @@ def _cover_polyline(graph: GridGraph, nodes) -> np.ndarray:
 
 
 def closed_curve_distances(graph: GridGraph, max_bases: int = 24, most: int = 1, margin: float = 0.01,
-                           seams: tuple[int, ...] = (0, 1)) -> dict:
+                           classes=None) -> dict:
     """Shortest closed grid curves of a torus in the primitive homotopy classes.
 
     Parameters
@@ -304,40 +304,59 @@ def closed_curve_distances(graph: GridGraph, max_bases: int = 24, most: int = 1,
         refinement keeps the best of several (:func:`direct.penalty.penalty`).
     margin : float, default 0.01
         See ``most``.
-    seams : tuple of int, default (0, 1)
-        The searches to run: from the seam ``s = 0`` (0: the classes with
-        ``a != 0``) and from the seam ``v = 0`` (1: the classes ``(0, +-1)``).
+    classes : iterable of (int, int), optional
+        The classes wanted (with ``|a|, |b| <= 1``, not both 0); default all
+        eight.  A class comes with its opposite (the same curves run backwards).
 
     Returns
     -------
     dict
-        ``{(a, b): [(length, polyline), ...]}`` for the eight classes with
-        ``|a|, |b| <= 1`` (those of ``seams``), at most ``most`` curves each, the shortest first;
+        ``{(a, b): [(length, polyline), ...]}`` for the classes wanted and
+        their opposites, at most ``most`` curves each, the shortest first;
         each polyline (parameters) ends at its start shifted by ``(a S, b V)``
-        in local coordinates.  Opposite classes are the same curves run backwards.
+        in local coordinates.
+
+    Notes
+    -----
+    One Dijkstra search on the 3 x 3 cover per base point, each stopped at
+    ``(1 + margin)`` times the shortest closed curve of the wanted classes
+    found so far (the first one not stopped): every curve that can be
+    returned is within that limit, and the lengths and routes are those of
+    full searches.  On two overlapping 12-gons a full search took 0.05 s
+    and one stopped at a short class 0.004 s.
     """
     N = graph.n_nodes
     M = _cover_matrix(graph)
     centre = _COVER.index((0, 0))
     grid = graph.coords
+    wanted = set(_CLOSED_CLASSES) if classes is None else {tuple(int(x) for x in c) for c in classes}
     out = {}
-    for axis, classes in _SEAM_CLASSES:
-        if axis not in seams:
+    for axis, seam_classes in _SEAM_CLASSES:
+        todo = [c for c in seam_classes if c in wanted or (-c[0], -c[1]) in wanted]
+        if not todo:
             continue
         on_seam = np.flatnonzero(np.isfinite(grid[:, 0]) & np.isclose(grid[:, axis], 0.0))
         on_seam = on_seam[np.unique(np.linspace(0, len(on_seam) - 1, min(max_bases, len(on_seam))).astype(int))]
         src = on_seam + N * centre
-        dist, node_route = _shortest(M, src, "scipy")
-        for a, b in classes:
-            tgt = on_seam + N * _COVER.index((a, b))
-            d = dist[np.arange(len(src)), tgt]
+        tgt = {c: on_seam + N * _COVER.index(c) for c in todo}
+        d = {c: np.full(len(src), np.inf) for c in todo}
+        preds = []
+        for k, s in enumerate(src):
+            limit = (1 + margin) * max(float(d[c].min()) for c in todo)
+            dist, pred = dijkstra(M, directed=True, indices=int(s), return_predecessors=True, limit=limit)
+            preds.append(pred)
+            for c in todo:
+                d[c][k] = dist[tgt[c][k]]
+        node_route = _paths_from_predecessors(np.asarray(preds), src)
+        for a, b in todo:
+            dc, tc = d[(a, b)], tgt[(a, b)]
             # the base points where the grid length is a local minimum along the (periodic) seam, best first
-            is_min = (d <= np.roll(d, 1)) & (d <= np.roll(d, -1)) & np.isfinite(d)
-            picked = np.flatnonzero(is_min & (d <= (1 + margin) * d.min()))
-            picked = picked[np.argsort(d[picked], kind="stable")][:most]
+            is_min = (dc <= np.roll(dc, 1)) & (dc <= np.roll(dc, -1)) & np.isfinite(dc)
+            picked = np.flatnonzero(is_min & (dc <= (1 + margin) * dc.min()))
+            picked = picked[np.argsort(dc[picked], kind="stable")][:most]
             if len(picked) == 0:
-                picked = np.array([int(np.argmin(d))])
-            found = [(float(d[k]), _cover_polyline(graph, node_route(k, tgt[k]))) for k in picked]
+                picked = np.array([int(np.argmin(dc))])
+            found = [(float(dc[k]), _cover_polyline(graph, node_route(k, tc[k]))) for k in picked]
             out[(a, b)] = found
             out[(-a, -b)] = [(length, poly[::-1].copy()) for length, poly in found]
     return out

@@ -508,9 +508,8 @@ def _settle(grid_costs: dict, solve, refine_keys, bias: float, finish=None, cach
     ``grid_costs`` may hold lower bounds for entries not searched yet (the
     closed curves of a torus, :func:`direct.geodesics.closed_curve_bounds`).
     Before entries are refined, ``complete(keys)`` replaces the bounds among
-    them by grid lengths (in ``grid_costs``, for all such entries at once) and
-    says whether it did; the round is then solved again.  A bound is at most
-    the grid length, so as long as no solve picks a bounded entry, every
+    them by grid lengths (in ``grid_costs``) and says whether it did; the
+    round is then solved again.  A bound is at most the grid length, so as long as no solve picks a bounded entry, every
     choice is the one the grid lengths would give.
     """
     cache = {} if cache is None else dict(cache)
@@ -836,15 +835,15 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
         }
         # closed curves enter at lower bounds of their grid lengths; the searches for them (most of the time on
         # a torus: 2.8 of 3.5 s on two overlapping 32-gons) run only once the program picks one (see _settle),
-        # from the seam that curve crosses (s = 0 for the classes (+-1, b), v = 0 for (0, +-1))
+        # for the classes picked only
         grid_costs.update({("closed", c): b for c, b in closed_curve_bounds(graph).items()})
         loops: dict = {}
 
         def complete(keys):
-            seams = {0 if k[1][0] else 1 for k in keys if k[0] == "closed" and k[1] not in loops}
-            if not seams:
+            classes = sorted({k[1] for k in keys if k[0] == "closed" and k[1] not in loops})
+            if not classes:
                 return False
-            loops.update(closed_curve_distances(graph, most=_CLOSED_STARTS, seams=tuple(sorted(seams))))
+            loops.update(closed_curve_distances(graph, most=_CLOSED_STARTS, classes=classes))
             for c, found in loops.items():
                 grid_costs[("closed", c)] = found[0][0]
             return True
