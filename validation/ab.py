@@ -13,7 +13,9 @@ random``: the random interval scenes of ``validation/default_tol.py`` (2 or 3 po
 vertices, 1 to 10 crossings), seeds 100 to 116.  ``--family circles``: the star polygons of 7, 11 and 15
 vertices (double covers sampled with an odd number of vertices, ``double_cover`` of
 ``validation/failures.py``) and the built-in ``fig10``, ``fig13`` and ``nested`` (no warm-up call: use
-``--repeat 1``).  ``--tol`` (default 1e-3) is passed to every call;
+``--repeat 1``)  ``--family tori``: pairs of closed polygons from
+``closed_searches.py`` (two regular 16-gons 1.0 apart, 32-gons 0.6 and 0.3 apart, the random pairs 0, 6
+and 8) and ``nested``.  ``--tol`` (default 1e-3) is passed to every call;
 ``--csv`` names the output (default ``ab.csv``).  For example ``python validation/ab.py HEAD~1
 --family random --tol 1e-6 --rounds 2 --repeat 1 --csv ab_random.csv`` (about six minutes).
 """
@@ -51,6 +53,12 @@ elif {family!r} == "circles":
         lambda t: np.column_stack([np.cos(2 * t), np.sin(2 * t)]), n=n, name=f"double cover n={{n}}")
         for n in (7, 11, 15)}}
     scenes.update({{name: direct.scenes.get(name) for name in ("fig10", "fig13", "nested")}})
+elif {family!r} == "tori":
+    from closed_searches import random_pair
+    from conftest import polygon_pair
+    scenes = {{f"{{n}}-gons {{shift}}": polygon_pair(n, shift) for n, shift in ((16, 1.0), (32, 0.6), (32, 0.3))}}
+    scenes.update({{f"pair{{seed}}": random_pair(seed) for seed in (0, 6, 8)}})
+    scenes["nested"] = direct.scenes.get("nested")
 else:
     from conftest import random_crossing_scene
     scenes = {{}}
@@ -102,7 +110,7 @@ def main(argv=None) -> int:
     ap.add_argument("rev", help="the git revision to compare the working tree with")
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--repeat", type=int, default=3)
-    ap.add_argument("--family", choices=["standard", "random", "circles"], default="standard")
+    ap.add_argument("--family", choices=["standard", "random", "circles", "tori"], default="standard")
     ap.add_argument("--tol", type=float, default=1e-3)
     ap.add_argument("--csv", default="ab.csv", help="output file name, beside this script")
     args = ap.parse_args(argv)
