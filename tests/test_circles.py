@@ -399,6 +399,45 @@ def test_closed_curve_bounds_are_below_every_closed_grid_curve(scene):
         assert bounds[(1, 0)] > 0.5 * found[(1, 0)][0][0]
 
 
+@pytest.mark.parametrize("scene", [direct.scenes.get("nested"), polygon_pair(17, 0.3, 0.2, 1),
+                                   polygon_pair(12, 0.6)], ids=["nested", "deep", "overlapping"])
+def test_stopped_closed_curve_searches_are_the_full_searches(scene):
+    """``closed_curve_distances`` stops each base point's search at 1.01 times the shortest closed curve found so
+    far: its lengths and routes are those of full searches from every base point (one scipy call, no limit),
+    picked by the same rule (local minima along the seam within 1 % of the best), class by class; and asking for
+    some classes gives those and their opposites only, the same curves."""
+    from scipy.sparse.csgraph import dijkstra
+
+    from direct.geodesics import _COVER, _cover_matrix, _cover_polyline, closed_curve_distances
+
+    graph = _torus_graph(scene)
+    N, M = graph.n_nodes, _cover_matrix(graph)
+    found = closed_curve_distances(graph, most=3)
+    assert len(found) == 8
+    for axis, classes in ((0, ((1, 0), (1, 1), (1, -1))), (1, ((0, 1),))):
+        seam = np.flatnonzero(np.isfinite(graph.coords[:, 0]) & np.isclose(graph.coords[:, axis], 0.0))
+        seam = seam[np.unique(np.linspace(0, len(seam) - 1, min(24, len(seam))).astype(int))]
+        src = seam + N * _COVER.index((0, 0))
+        dist, pred = dijkstra(M, directed=True, indices=src, return_predecessors=True)
+        for c in classes:
+            tgt = seam + N * _COVER.index(c)
+            d = dist[np.arange(len(src)), tgt]
+            is_min = (d <= np.roll(d, 1)) & (d <= np.roll(d, -1))
+            picked = np.flatnonzero(is_min & (d <= 1.01 * d.min()))
+            picked = picked[np.argsort(d[picked], kind="stable")][:3]
+            assert [length for length, _ in found[c]] == d[picked].tolist(), c
+            for k, (_, poly) in zip(picked, found[c]):
+                nodes = [int(tgt[k])]
+                while nodes[-1] != src[k]:
+                    nodes.append(int(pred[k, nodes[-1]]))
+                np.testing.assert_array_equal(poly, _cover_polyline(graph, nodes[::-1]))
+            np.testing.assert_array_equal(found[(-c[0], -c[1])][0][1], found[c][0][1][::-1])
+    some = closed_curve_distances(graph, most=3, classes=[(-1, 1), (0, 1)])
+    assert set(some) == {(1, -1), (-1, 1), (0, 1), (0, -1)}
+    for c, curves in some.items():
+        assert [length for length, _ in curves] == [length for length, _ in found[c]]
+
+
 def test_cover_matrix_is_the_matrix_of_the_cover_edges():
     """The 3 x 3 cover of a torus graph, stacked block by block, against the direct construction from its edges."""
     import scipy.sparse as sp
