@@ -80,7 +80,7 @@ from __future__ import annotations
 
 import time
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -94,7 +94,7 @@ from .geodesics import Backend, closed_curve_bounds, closed_curve_distances, gri
 from .grid import Domain, build_graph
 from .matching import solve as solve_assignment
 from .matching import solve_flow, solve_torus
-from .metric import Metric, MetricName, get_metric
+from .metric import Metric, MetricName, _breaks, _vertex_params, get_metric
 from .refinement import GeodesicJob, RefinedPath, coarse_geodesics, polyline_lengths, refine_many
 from .scene import Scene
 from .scenes import resolve
@@ -335,6 +335,77 @@ def domains(scene: Scene, crossings: list[Crossing]) -> list[Domain]:
     return out
 
 
+def _in_deformed_arclength(scene: Scene, crossings: list[Crossing]) -> tuple[Scene, list[Crossing]]:
+    """The scene parametrized by deformed arclength, and its crossings there.
+
+    ``J^G`` (and ``euclid``) do not depend on the parametrization (Prop. 18),
+    but the grids and the refinement do: in the deformed arclength the
+    length element of ``G`` is isotropic, and a curve that is straight in the
+    parameters is straight in the deformed arclength.  In the reference
+    arclength a component whose reference speeds differ a lot from its
+    deformed ones had its grid edges and its refined polylines bend across its
+    vertex lines (a component with reference segments of 20 and 0.005 for
+    deformed ones of 1.2 and 0.9: the geodesic to the other side of the
+    domain lost to one 2.7e-3 longer, with an estimate of 1.8e-6; an
+    adversarial review).  A segment shorter than ``_COLLAPSED`` times its
+    component's mean deformed segment spans that much parameter (a segment
+    that the deformation collapses to a point keeps a width); a component
+    collapsed to a point keeps its reference arclength.
+    """
+    comps = []
+    for c in scene.components:
+        d = np.linalg.norm(np.diff(c.deformed_ring, axis=0), axis=1)
+        if d.max() > 0:
+            c = c.reparametrized(np.maximum(d, _COLLAPSED * float(d.mean())))
+        comps.append(c)
+    moved = []
+    for x in crossings:
+        params = tuple(float(comps[i].params[k] + (p - scene.components[i].params[k])
+                             * (comps[i].segment_lengths[k] / scene.components[i].segment_lengths[k]))
+                       for i, k, p in zip(x.components, x.segments, x.params))
+        moved.append(replace(x, params=params))
+    return Scene(tuple(comps), name=scene.name), moved
+
+
+#: the least parameter width of a segment in the deformed arclength, relative to its component's mean segment
+_COLLAPSED = 1e-3
+
+
+def _crossing_point(crossing: Crossing, point: np.ndarray) -> tuple[float, float]:
+    """The parameters of ``crossing`` in the order of a domain's ``point`` (its mirror image on an annulus)."""
+    x = tuple(map(float, crossing.params))
+    return x if point[0] <= point[1] or crossing.components[0] != crossing.components[1] else x[::-1]
+
+
+def _to_reference(comps, path: np.ndarray, start, end) -> np.ndarray:
+    """A polyline in the parameters of ``comps`` as the same curve in reference arclength.
+
+    Its segments are cut where they cross a vertex line (the map is affine
+    between them, so every piece stays straight), then mapped; the ends are
+    set to the crossing points ``start`` / ``end`` when given.
+    """
+    if not any(hasattr(c, "source") for c in comps):
+        return path
+    P, Q = path[:-1], path[1:]
+    edges, ts = [np.arange(len(P))], [np.zeros(len(P))]
+    for axis, c in enumerate(comps):
+        lo, hi = np.minimum(P[:, axis], Q[:, axis]), np.maximum(P[:, axis], Q[:, axis])
+        vp = _vertex_params(c, float(lo.min()), float(hi.max())) if len(P) else np.empty(0)
+        e, t = _breaks(vp, P[:, axis], Q[:, axis])
+        edges.append(e)
+        ts.append(t)
+    e, t = np.concatenate(edges), np.concatenate(ts)
+    order = np.lexsort((t, e))
+    e, t = e[order], t[order]
+    pts = np.vstack([P[e] + t[:, None] * (Q[e] - P[e]), path[-1:]])
+    out = np.column_stack([comps[0].reference_arclength(pts[:, 0]), comps[1].reference_arclength(pts[:, 1])])
+    if start is not None:
+        out[0] = start
+    if end is not None:
+        out[-1] = end
+    return out
+
+
 def _min_sine(domain: Domain, crossings: list[Crossing]) -> float:
     """The smallest ``|sin|`` of the angle between the deformed tangents at the crossings of a domain."""
     out = 1.0
@@ -382,7 +453,7 @@ def _polyline(comp, which: str, other=None, level: float | None = None) -> str:
     """How error messages of :mod:`direct.topology` name a polyline (and the point of another component)."""
     out = f"the {which} polyline of component {comp.name!r}"
     if other is not None:
-        out += f" (the point is component {other.name!r} at reference arclength {level:.6g})"
+        out += f" (the point is component {other.name!r} at reference arclength {other.reference_arclength(level):.6g})"
     return out
 
 
@@ -1031,7 +1102,7 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
         value, chosen, cache = _settle(grid_costs, solve, refine_keys, bias, finish, complete=complete)
         # the absolute tolerance (a curve much shorter than the others needs no relative accuracy of its own) came
         # from the grid's value, which overestimates J many times over where the grid cannot follow a narrow valley
-        # (a hairpin of the deformed curve: 33 times at 128 cells on the built-in scene hairpin; validation/
+        # (a hairpin of the deformed curve: 84 times at 96 cells on the built-in scene hairpin; validation/
         # random_closed.py); the chosen curves that stopped on it, short of their relative tolerance, are refined
         # again with the refined value's, when the grid's was more than twice as large (below that the sum of the
         # absolute tolerances stays within a fifth of tol * J)
@@ -1312,13 +1383,15 @@ def _penalty(scene, metric, power, tol, resolution, neighbours, backend, refine,
     names = [c.name for c in scene.components]
     total = grid_total = err_total = rounding_total = 0.0
     pairs: list[Pair] = []
-    for dom in domains(scene, crossings):
+    # the metrics that do not depend on the parametrization are computed in the deformed arclength
+    work, work_crossings = _in_deformed_arclength(scene, crossings) if met.deformed_grid else (scene, crossings)
+    for dom in domains(work, work_crossings):
         if len(dom.points) == 0 and not any(boundary_conditions(dom).values()):
             continue  # nothing to join: J = 0 on this piece
         # a grazing crossing's geodesic runs down a narrow valley into a corner of the domain and turns onto a side
         # there; the refinement can settle short of that turn with a small estimate, so such domains always get a
         # second start (measured: 1.3e-3 off with an estimate of 1.5e-5 at 0.003 rad and tol 1e-3 without it)
-        grazing = refine and allow_second and _min_sine(dom, crossings) < _GRAZING
+        grazing = refine and allow_second and _min_sine(dom, work_crossings) < _GRAZING
         value, grid_value, err, curves, again = _solve_domain(dom, met, settings, backend, refine)
         if grazing and not settings["second_pass"]:
             settings["grazing_second_pass"] = settings.get("grazing_second_pass", 0) + 1  # domains, for the record
@@ -1347,10 +1420,11 @@ def _penalty(scene, metric, power, tol, resolution, neighbours, backend, refine,
             perr += rerr
             a = start if isinstance(start, (int, np.integer)) else None
             b = end if isinstance(end, (int, np.integer)) else None
-            sp_ = None if a is None else tuple(map(float, dom.points[a]))
-            ep_ = None if b is None else tuple(map(float, dom.points[b]))
             sc = None if a is None else int(dom.crossing_ids[a])
             ec = None if b is None else int(dom.crossing_ids[b])
+            sp_ = None if a is None else _crossing_point(crossings[sc], dom.points[a])
+            ep_ = None if b is None else _crossing_point(crossings[ec], dom.points[b])
+            path = _to_reference(dom.comps, path, sp_, ep_)
             pairs.append(Pair((ni, nj), sp_, ep_, sc, ec, length, perr, path, closed, plen))
             if m == 2:
                 # mirror image in M_j x M_i: coordinates swapped, signs (hence orientation) reversed

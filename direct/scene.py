@@ -177,6 +177,42 @@ class Component:
         k = self.segment_index(s)
         return ring[k] + (s - self.params[k])[..., None] * speeds[k]
 
+    def reference_arclength(self, s) -> np.ndarray:
+        """The reference arclength of parameters ``s`` (the identity here; see :meth:`reparametrized`).
+
+        Parameters
+        ----------
+        s : (...,) array_like of float
+            Parameters of this component (unwrapped when closed).
+
+        Returns
+        -------
+        (...,) ndarray of float
+            The same material points in reference arclength (length units).
+        """
+        return np.asarray(s, dtype=float)
+
+    def reparametrized(self, widths) -> "Component":
+        """The same component with segment ``k`` spanning ``widths[k]`` of parameter instead of its reference length.
+
+        ``J^G`` does not depend on the parametrization (Prop. 18), and its
+        numerics are best in the deformed arclength, where its length element
+        is isotropic: :func:`direct.penalty.penalty` computes there and maps
+        the curves back with :meth:`reference_arclength`.
+
+        Parameters
+        ----------
+        widths : (n_segments,) array_like of float
+            Positive parameter length of each segment.
+
+        Returns
+        -------
+        Component
+            The same polylines and name; :attr:`params`, :meth:`phi` and
+            :meth:`j` in the new parameter, :meth:`reference_arclength` back.
+        """
+        return _Reparametrized(self.reference, self.deformed, self.closed, self.name, np.asarray(widths, float), self)
+
     def reversed(self) -> "Component":
         """The same component with its orientation reversed (reference and deformation)."""
         if self.closed:
@@ -198,6 +234,29 @@ class Component:
     def __repr__(self) -> str:
         kind = "closed" if self.closed else "open"
         return f"Component({self.name!r}, {kind}, {self.n_vertices} vertices, length={self.length:.6g})"
+
+
+@dataclass(frozen=True, eq=False, repr=False)
+class _Reparametrized(Component):
+    """A component whose parameter is not its reference arclength (:meth:`Component.reparametrized`)."""
+
+    widths: np.ndarray = None
+    source: Component = None
+
+    @cached_property
+    def segment_lengths(self) -> np.ndarray:
+        """(n_segments,) parameter lengths of the segments."""
+        return _frozen(self.widths)
+
+    def reference_arclength(self, s) -> np.ndarray:
+        """The reference arclength of parameters ``s``: affine on each segment, periodic when closed."""
+        s = np.asarray(s, dtype=float)
+        turns = np.floor(s / self.length) if self.closed else 0.0
+        r = s - turns * self.length
+        k = self.segment_index(r)
+        src = self.source
+        out = src.params[k] + (r - self.params[k]) * (src.segment_lengths[k] / self.segment_lengths[k])
+        return out + turns * src.length
 
 
 @dataclass(frozen=True, eq=False)
