@@ -338,7 +338,7 @@ def domains(scene: Scene, crossings: list[Crossing]) -> list[Domain]:
 def _in_deformed_arclength(scene: Scene, crossings: list[Crossing]) -> tuple[Scene, list[Crossing]]:
     """The scene parametrized by deformed arclength, and its crossings there.
 
-    ``J^G`` (and ``euclid``) do not depend on the parametrization (Prop. 18),
+    ``J^G`` does not depend on the parametrization (Prop. 18),
     but the grids and the refinement do: in the deformed arclength the
     length element of ``G`` is isotropic, and a curve that is straight in the
     parameters is straight in the deformed arclength.  In the reference
@@ -1383,8 +1383,10 @@ def _penalty(scene, metric, power, tol, resolution, neighbours, backend, refine,
     names = [c.name for c in scene.components]
     total = grid_total = err_total = rounding_total = 0.0
     pairs: list[Pair] = []
-    # the metrics that do not depend on the parametrization are computed in the deformed arclength
-    work, work_crossings = _in_deformed_arclength(scene, crossings) if met.deformed_grid else (scene, crossings)
+    # the metrics that do not depend on the parametrization are computed in the deformed arclength (not the
+    # degenerate euclid, whose refinement keeps Euclidean normals in the reference arclength: _speed_lookup)
+    invariant = met.deformed_grid and not met.degenerate
+    work, work_crossings = _in_deformed_arclength(scene, crossings) if invariant else (scene, crossings)
     for dom in domains(work, work_crossings):
         if len(dom.points) == 0 and not any(boundary_conditions(dom).values()):
             continue  # nothing to join: J = 0 on this piece
