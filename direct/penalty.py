@@ -336,28 +336,36 @@ def domains(scene: Scene, crossings: list[Crossing]) -> list[Domain]:
 
 
 def _in_deformed_arclength(scene: Scene, crossings: list[Crossing]) -> tuple[Scene, list[Crossing]]:
-    """The scene parametrized by deformed arclength, and its crossings there.
+    """The scene with its unevenly stretched components parametrized by deformed arclength, and its crossings there.
 
-    ``J^G`` does not depend on the parametrization (Prop. 18),
-    but the grids and the refinement do: in the deformed arclength the
-    length element of ``G`` is isotropic, and a curve that is straight in the
-    parameters is straight in the deformed arclength.  In the reference
-    arclength a component whose reference speeds differ a lot from its
-    deformed ones had its grid edges and its refined polylines bend across its
-    vertex lines (a component with reference segments of 20 and 0.005 for
-    deformed ones of 1.2 and 0.9: the geodesic to the other side of the
-    domain lost to one 2.7e-3 longer, with an estimate of 1.8e-6; an
-    adversarial review).  A segment shorter than ``_COLLAPSED`` times its
-    component's mean deformed segment spans that much parameter (a segment
-    that the deformation collapses to a point keeps a width); a component
-    collapsed to a point keeps its reference arclength.
+    ``J^G`` does not depend on the parametrization (Prop. 18), but the grids
+    and the refinement do: a curve straight in the parameters bends, in the
+    deformed arclength (where the length element of ``G`` is isotropic), on
+    every vertex line where the speed ``|phi'|`` jumps.  Where the speeds of
+    a component's segments span more than ``_SPREAD`` (largest over
+    smallest), the component is parametrized by its deformed arclength:
+    reference segments of 20 and 0.005 for deformed ones of 1.2 and 0.9 had
+    the geodesic to the far side of the domain lose to one 2.7e-3 longer,
+    with an estimate of 1.8e-6 (an adversarial review).  A component within
+    that spread keeps its reference arclength: the studies validated the
+    pipeline there, and the deformed arclength is no better everywhere
+    (interval seed 138 of ``validation/default_tol.py``, speeds within 15:
+    its grids then route a curve to the longer of two local geodesics across
+    a crease, 7.7e-4 above, with an estimate of 8e-6 at ``tol=1e-5``).  A
+    segment shorter than ``_COLLAPSED`` times its component's mean deformed
+    segment spans that much parameter; a component collapsed to a point
+    keeps its reference arclength.
     """
     comps = []
     for c in scene.components:
         d = np.linalg.norm(np.diff(c.deformed_ring, axis=0), axis=1)
-        if d.max() > 0:
+        speed = d / c.segment_lengths
+        moving = speed[speed > 0]
+        if moving.size and moving.max() > _SPREAD * moving.min():
             c = c.reparametrized(np.maximum(d, _COLLAPSED * float(d.mean())))
         comps.append(c)
+    if not any(hasattr(c, "source") for c in comps):
+        return scene, crossings
     moved = []
     for x in crossings:
         params = tuple(float(comps[i].params[k] + (p - scene.components[i].params[k])
@@ -367,6 +375,8 @@ def _in_deformed_arclength(scene: Scene, crossings: list[Crossing]) -> tuple[Sce
     return Scene(tuple(comps), name=scene.name), moved
 
 
+#: a component whose segments' speeds |phi'| span more than this is computed in its deformed arclength (for G)
+_SPREAD = 16.0
 #: the least parameter width of a segment in the deformed arclength, relative to its component's mean segment
 _COLLAPSED = 1e-3
 
@@ -1102,7 +1112,7 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
         value, chosen, cache = _settle(grid_costs, solve, refine_keys, bias, finish, complete=complete)
         # the absolute tolerance (a curve much shorter than the others needs no relative accuracy of its own) came
         # from the grid's value, which overestimates J many times over where the grid cannot follow a narrow valley
-        # (a hairpin of the deformed curve: 84 times at 96 cells on the built-in scene hairpin; validation/
+        # (a hairpin of the deformed curve: 33 times at 128 cells on the built-in scene hairpin; validation/
         # random_closed.py); the chosen curves that stopped on it, short of their relative tolerance, are refined
         # again with the refined value's, when the grid's was more than twice as large (below that the sum of the
         # absolute tolerances stays within a fifth of tol * J)

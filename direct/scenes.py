@@ -37,8 +37,7 @@ ring      the example at the end of section 3.4.3: a unit circle kept in
 hairpin   a regular octagon folded into a thin loop: two segments of the
           deformation meet at a hairpin of 0.4 degrees and one crossing
           closes the loop; ``J^G`` is tiny (3.3e-5) and the grid's value at
-          128 cells is 6.2 times it, at 96 cells 84 times (a valley
-          narrower than a cell).
+          128 cells is 33 times it (a valley narrower than a cell).
 ========  =====================================================================
 
 Circles are sampled as polylines with the vertices at equal angles; their
