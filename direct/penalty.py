@@ -409,10 +409,13 @@ def _to_reference(comps, path: np.ndarray, start, end) -> np.ndarray:
     e, t = e[order], t[order]
     pts = np.vstack([P[e] + t[:, None] * (Q[e] - P[e]), path[-1:]])
     out = np.column_stack([comps[0].reference_arclength(pts[:, 0]), comps[1].reference_arclength(pts[:, 1])])
-    if start is not None:
-        out[0] = start
-    if end is not None:
-        out[-1] = end
+    for row, point in ((0, start), (-1, end)):
+        if point is None:
+            continue
+        for axis, c in enumerate(comps):  # the crossing's parameter, as many turns on as the curve's end
+            period = getattr(c, "source", c).length if c.closed else 0.0
+            turns = np.round((out[row, axis] - point[axis]) / period) if period else 0.0
+            out[row, axis] = point[axis] + turns * period
     return out
 
 
