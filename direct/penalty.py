@@ -247,7 +247,9 @@ class Penalty:
         number of such domains); ``refined_again``, the number of domain
         solves whose chosen curves were refined a second time because the
         absolute tolerance taken from the grid's value was too loose (a
-        grid that overestimates ``J`` many times over, in a narrow valley).
+        grid that overestimates ``J`` many times over, in a narrow valley);
+        ``deformed_arclength``, the names of the components computed in
+        their deformed arclength (``G``, speeds spanning more than 16).
     seconds : float
         Wall time of the computation.
     """
@@ -1400,6 +1402,8 @@ def _penalty(scene, metric, power, tol, resolution, neighbours, backend, refine,
     # degenerate euclid, whose refinement keeps Euclidean normals in the reference arclength: _speed_lookup)
     invariant = met.deformed_grid and not met.degenerate
     work, work_crossings = _in_deformed_arclength(scene, crossings) if invariant else (scene, crossings)
+    if work is not scene:  # for the record: the components computed in their deformed arclength
+        settings["deformed_arclength"] = [c.name for c in work.components if hasattr(c, "source")]
     for dom in domains(work, work_crossings):
         if len(dom.points) == 0 and not any(boundary_conditions(dom).values()):
             continue  # nothing to join: J = 0 on this piece

@@ -280,6 +280,7 @@ def test_G_does_not_see_extreme_reference_speeds(lengths):
     the crossing points."""
     res = direct.penalty(_sped(lengths), tol=1e-5)
     unit = direct.penalty(_sped(None), tol=1e-5)
+    assert res.settings["deformed_arclength"] == ["B"] and "deformed_arclength" not in unit.settings
     assert res.value == pytest.approx(unit.value, rel=1e-12)
     assert abs(res.value - 0.64302062) <= res.error_estimate + 1e-8
     comps = _sped(lengths).components
