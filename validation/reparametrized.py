@@ -19,6 +19,12 @@ Every scene runs at ``tol=1e-3`` (one start and the route check) and
 the ``error_estimate`` without a ``ToleranceWarning``, ``over tol`` when it
 exceeds ``tol``.  Writes ``reparametrized.csv`` beside this file and prints
 a count per tolerance.
+
+``python validation/reparametrized.py --uneven`` (about two minutes) draws
+each piece's reference length instead, log-uniform in ``10^-2.5`` to
+``10^1.5`` (2 or 3 pieces a segment: speeds spanning up to 10^4), and writes
+``reparametrized_uneven.csv``.  ``--rev REV`` runs the ``direct`` of a git
+revision instead (a temporary worktree), to compare with an older version.
 """
 
 from __future__ import annotations
@@ -42,7 +48,7 @@ from default_tol import status  # noqa: E402
 TOLS = (1e-3, 1e-5)
 
 
-def scene(seed: int) -> tuple[direct.Scene, float, dict]:
+def scene(seed: int, uneven: bool = False) -> tuple[direct.Scene, float, dict]:
     """A randomly placed and parametrized straight crossing: ``(scene, J^G, its parameters)``."""
     rng = np.random.default_rng(seed)
     a, b, c, d = np.exp(rng.uniform(np.log(0.01), np.log(2.0), 4))
@@ -54,10 +60,14 @@ def scene(seed: int) -> tuple[direct.Scene, float, dict]:
     e = np.array([np.cos(alpha), np.sin(alpha)])
     comps = []
     for k, (start, end) in enumerate(((np.array([-a, 0.0]), np.array([b, 0.0])), (-c * e, d * e))):
-        n = int(rng.integers(1, 4))
+        n = int(rng.integers(2, 4)) if uneven else int(rng.integers(1, 4))
         t = np.concatenate([[0.0], np.sort(rng.uniform(0.0, 1.0, n - 1)), [1.0]])
         deformed = (start + t[:, None] * (end - start)) @ R.T + shift
-        reference = np.column_stack([np.linspace(0.0, rng.uniform(0.5, 3.0), n + 1), np.full(n + 1, 10.0 * k)])
+        if uneven:
+            x = np.concatenate([[0.0], np.cumsum(10.0 ** rng.uniform(-2.5, 1.5, n))])
+        else:
+            x = np.linspace(0.0, rng.uniform(0.5, 3.0), n + 1)
+        reference = np.column_stack([x, np.full(n + 1, 10.0 * k)])
         if rng.random() < 0.5:
             deformed, reference = deformed[::-1], reference[::-1]
         comps.append(direct.Component(reference, deformed, name="AB"[k]))
@@ -68,10 +78,10 @@ def scene(seed: int) -> tuple[direct.Scene, float, dict]:
                                                                       scale=scale)
 
 
-def main(seeds=range(1000, 1200)) -> list[dict]:
+def main(seeds=range(1000, 1200), uneven: bool = False, out: str = "reparametrized.csv") -> list[dict]:
     rows = []
     for seed in seeds:
-        sc, exact, params = scene(seed)
+        sc, exact, params = scene(seed, uneven)
         for tol in TOLS:
             res, warned, seconds = solve_recording_warnings(sc, tol)
             err = abs(res.value - exact)
@@ -83,7 +93,7 @@ def main(seeds=range(1000, 1200)) -> list[dict]:
             if verdict != "ok" or err > res.error_estimate:
                 print(f"seed {seed} tol {tol:g}: error {err / exact:.2e}, estimate {res.error_estimate / exact:.2e}, "
                       f"warned {warned}: {verdict}", flush=True)
-    with open(os.path.join(HERE, "reparametrized.csv"), "w", newline="") as f:
+    with open(os.path.join(HERE, out), "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=list(rows[0]))
         w.writeheader()
         w.writerows(rows)
@@ -101,4 +111,21 @@ def main(seeds=range(1000, 1200)) -> list[dict]:
 
 
 if __name__ == "__main__":
-    main()
+    import argparse
+
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--uneven", action="store_true", help="reference pieces of lengths 10^-2.5 to 10^1.5")
+    ap.add_argument("--rev", help="run the direct of this git revision (a temporary worktree)")
+    args = ap.parse_args()
+    name = "reparametrized_uneven" if args.uneven else "reparametrized"
+    if args.rev:
+        import subprocess
+
+        from ab import worktree
+
+        with worktree(args.rev) as tree:  # the same script, importing that revision's direct
+            code = (f"import sys; sys.path.insert(0, {HERE!r}); import reparametrized as r; "
+                    f"r.main(uneven={args.uneven}, out={name + '_' + args.rev + '.csv'!r})")
+            subprocess.run([sys.executable, "-c", code], cwd=tree, env=dict(os.environ, PYTHONPATH=tree), check=True)
+    else:
+        main(uneven=args.uneven, out=name + ".csv")
