@@ -196,9 +196,10 @@ class Component:
         """The same component with segment ``k`` spanning ``widths[k]`` of parameter instead of its reference length.
 
         ``J^G`` does not depend on the parametrization (Prop. 18), and its
-        numerics are best in the deformed arclength, where its length element
-        is isotropic: :func:`direct.penalty.penalty` computes there and maps
-        the curves back with :meth:`reference_arclength`.
+        length element is isotropic in the deformed arclength:
+        :func:`direct.penalty.penalty` computes a component whose speeds
+        ``|phi'|`` span more than 16 in its deformed arclength and maps the
+        curves back with :meth:`reference_arclength`.
 
         Parameters
         ----------
@@ -210,8 +211,17 @@ class Component:
         Component
             The same polylines and name; :attr:`params`, :meth:`phi` and
             :meth:`j` in the new parameter, :meth:`reference_arclength` back.
+
+        Raises
+        ------
+        SceneError
+            If ``widths`` is not one positive finite number per segment.
         """
-        return _Reparametrized(self.reference, self.deformed, self.closed, self.name, np.asarray(widths, float), self)
+        w = np.asarray(widths, dtype=float)
+        if w.shape != (self.n_segments,) or not (np.isfinite(w).all() and (w > 0).all()):
+            raise SceneError(f"component {self.name!r}: widths must be {self.n_segments} positive finite numbers (one "
+                             f"per segment), got shape {w.shape}")
+        return _Reparametrized(self.reference, self.deformed, self.closed, self.name, w, self)
 
     def reversed(self) -> "Component":
         """The same component with its orientation reversed (reference and deformation)."""

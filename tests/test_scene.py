@@ -179,3 +179,21 @@ def test_with_deformed_wants_one_polyline_per_component():
     np.testing.assert_array_equal(moved.components[1].deformed, sc.components[1].deformed + 1.0)
     with pytest.raises(direct.SceneError, match="1 deformed polylines for the 2 components"):
         sc.with_deformed([sc.components[0].deformed])
+
+
+def test_a_reparametrized_component_is_the_same_curve_in_another_parameter():
+    """``Component.reparametrized``: segment k spans ``widths[k]``; the vertices map to the same points, the
+    parameter maps back to the reference arclength affinely on each segment (periodically on a circle), and
+    widths that are not one positive number per segment are refused."""
+    c = direct.Component([[0, 0], [1, 0], [1, 3], [0, 3]], [[0, 0], [2, 0], [2, 1], [0, 2]], closed=True, name="q")
+    r = c.reparametrized([2.0, 1.0, 2.0, 4.0])
+    np.testing.assert_allclose(r.params, [0, 2, 3, 5, 9])
+    np.testing.assert_allclose(r.phi(r.params), c.phi(c.params))
+    np.testing.assert_allclose(r.j(r.params), c.j(c.params))
+    np.testing.assert_allclose(r.reference_arclength(r.params), c.params)
+    # halfway along a segment, and a turn and a half on
+    np.testing.assert_allclose(r.reference_arclength([1.0, 9 + 4.0]), [0.5, 8 + 4.5])
+    np.testing.assert_allclose(r.phi(4.0), c.phi(4.5))
+    for bad in ([1.0, 1.0, 1.0], [1.0, 0.0, 1.0, 1.0], [1.0, np.nan, 1.0, 1.0]):
+        with pytest.raises(direct.SceneError, match="'q': widths must be 4 positive"):
+            c.reparametrized(bad)
