@@ -67,6 +67,9 @@ class Metric(ABC):
     #: grids uniform in the deformed arclength of each component, where the norm's axes are the stencil's
     #: (see :func:`direct.grid.build_graph`); otherwise uniform in the reference arclength
     deformed_grid: bool = False
+    #: the lengths do not depend on the parametrization of M (Prop. 18): :func:`direct.penalty.penalty` may then
+    #: compute an unevenly stretched component in its deformed arclength (only a non-degenerate metric)
+    reparametrization_invariant: bool = False
 
     @abstractmethod
     def weight(self, r2: np.ndarray) -> np.ndarray:
@@ -161,6 +164,7 @@ class GFamily(Metric):
 
     name = "G"
     deformed_grid = True  # isotropic in the deformed arclengths
+    reparametrization_invariant = True  # h(|phi(x1) - phi(x2)|^2) |(phi'(x1) dx1, phi'(x2) dx2)|
 
     def weight(self, r2):  # noqa: D102
         return np.sqrt(self.h(r2))
@@ -307,6 +311,7 @@ class Euclid(Metric):
     order = 0.0
     degenerate = True
     deformed_grid = True  # the axes of the norm on the stencil's diagonals
+    reparametrization_invariant = True  # |phi'(x1) dx1 - phi'(x2) dx2| (computed in the reference arclength still)
 
     def weight(self, r2):  # noqa: D102
         return np.ones_like(r2)

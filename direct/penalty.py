@@ -1400,7 +1400,7 @@ def _penalty(scene, metric, power, tol, resolution, neighbours, backend, refine,
     pairs: list[Pair] = []
     # the metrics that do not depend on the parametrization are computed in the deformed arclength (not the
     # degenerate euclid, whose refinement keeps Euclidean normals in the reference arclength: _speed_lookup)
-    invariant = met.deformed_grid and not met.degenerate
+    invariant = met.reparametrization_invariant and not met.degenerate
     work, work_crossings = _in_deformed_arclength(scene, crossings) if invariant else (scene, crossings)
     if work is not scene:  # for the record: the components computed in their deformed arclength
         settings["deformed_arclength"] = [c.name for c in work.components if hasattr(c, "source")]

@@ -294,6 +294,25 @@ def test_G_does_not_see_extreme_reference_speeds(lengths):
         assert tuple(p.path[0]) == p.start or tuple(p.path[-1]) == p.end
 
 
+def test_a_metric_that_depends_on_the_parametrization_keeps_the_reference_arclength():
+    """Only a metric that declares itself invariant under reparametrization (``G``, ``GFamily``) is computed in the
+    deformed arclength; a user's metric on the grids of the deformed arclength (``deformed_grid``) that is not
+    (``g`` on them) came out 190 times too high when it was (a code review)."""
+    from dataclasses import dataclass
+
+    from direct.metric import g
+
+    @dataclass(frozen=True, repr=False)
+    class GridOfG(g):
+        deformed_grid = True
+
+    scene = _sped((20.0, 0.005))
+    plain, custom = direct.penalty(scene, "g"), direct.penalty(scene, GridOfG())
+    assert "deformed_arclength" not in custom.settings and "deformed_arclength" not in plain.settings
+    assert abs(custom.value - plain.value) <= custom.error_estimate + plain.error_estimate
+    assert direct.penalty(scene).settings["deformed_arclength"] == ["B"]
+
+
 def test_grid_value_is_invariant_under_reparametrization_for_G():
     """J^G is invariant under reparametrization (Example 14), and so is the grid built on deformed arclength.
 
