@@ -1,6 +1,6 @@
 """Closed curves of a torus searched only when program (34) picks one, against searching them up front.
 
-Run ``python validation/closed_searches.py`` (about four minutes).  On a
+Run ``python validation/closed_searches.py`` (about four minutes alone, ten on a loaded machine).  On a
 torus (two closed components) the family of curves may include closed
 curves (section 3.3.4), and their grid lengths come from 2 x 24 Dijkstra
 searches on the 3 x 3 cover of the grid
