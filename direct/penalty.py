@@ -415,7 +415,7 @@ def _to_reference(comps, path: np.ndarray, start, end) -> np.ndarray:
         if point is None:
             continue
         for axis, c in enumerate(comps):  # the crossing's parameter, as many turns on as the curve's end
-            period = getattr(c, "source", c).length if c.closed else 0.0
+            period = float(c.reference_arclength(c.length)) if c.closed else 0.0
             turns = np.round((out[row, axis] - point[axis]) / period) if period else 0.0
             out[row, axis] = point[axis] + turns * period
     return out
