@@ -120,8 +120,13 @@ _SHALLOW = 0.01
 #: ... when that point lies within this fraction of the curve's chord along the diagonal from its end
 _SLIDE_REACH = 0.5
 
-#: closed curves of a torus refined from this many starts each (see closed_curve_distances), the best kept
-_CLOSED_STARTS = 3
+#: closed curves of a torus refined from this many starts each (see closed_curve_distances), the best kept: the
+#: grid's closed curves of the class within its stencil bias (plus this margin) of the shortest, on routes apart
+_CLOSED_STARTS = 6
+_CLOSED_MARGIN = 0.01
+#: closed curves of one class whose refined lengths lie within this (relative) are one family of geodesics, shifted,
+#: and their spread is added to the estimate (see _best_of_starts)
+_CLOSED_FAMILY = 5e-4
 
 #: crossings whose tangents make an angle with sine below this are grazing: their domain always gets a second pass
 _GRAZING = 0.1
@@ -752,7 +757,8 @@ def _family_shifts(domain: Domain) -> list[np.ndarray]:
     return [f * edge * axis for f in _FAMILY_SHIFTS]
 
 
-def _more_starts(domain: Domain, metric: Metric, starts: dict, cache: dict, tol: float, atol: float) -> dict:
+def _more_starts(domain: Domain, metric: Metric, starts: dict, cache: dict, tol: float, atol: float,
+                 family: float = 0.01) -> dict:
     """Refine entries again from more starts, all in one batch: ``{key: RefinedPath}`` (see :func:`_best_of_starts`).
 
     ``starts`` maps each entry to its further jobs; ``cache`` holds its first refined curve.
@@ -760,7 +766,7 @@ def _more_starts(domain: Domain, metric: Metric, starts: dict, cache: dict, tol:
     starts = {k: jobs for k, jobs in starts.items() if jobs}
     refined = iter(refine_many(domain, metric, [j for jobs in starts.values() for j in jobs], tol=tol, atol=atol)
                    if starts else [])
-    return {k: _best_of_starts([cache[k]] + [next(refined) for _ in jobs]) for k, jobs in starts.items()}
+    return {k: _best_of_starts([cache[k]] + [next(refined) for _ in jobs], family) for k, jobs in starts.items()}
 
 
 def _slid_ends(domain: Domain, metric: Metric, keys: list, cache: dict, grid_costs: dict, tol: float,
@@ -878,18 +884,21 @@ def _rounding_errors(domain: Domain, metric: Metric, curves: list) -> tuple[np.n
     return out, arithmetic
 
 
-def _best_of_starts(found: list[RefinedPath]) -> RefinedPath:
+def _best_of_starts(found: list[RefinedPath], family: float = 0.01) -> RefinedPath:
     """The shortest of the refined curves of one entry from several starts, its estimate widened by their spread.
 
-    Starts that settle in nearby minima (within 1 %: the same family of
-    geodesics, shifted) leave the global one unknown to about their spread,
-    which is added (nested: 1.4e-5 relative between the minima that three
-    starts reach, with a discretization estimate of 3.7e-6).  Farther minima
-    are other geodesics, and add nothing.
+    Starts that settle in nearby minima (within ``family``, relative: the
+    same family of geodesics, shifted) leave the global one unknown to about
+    their spread, which is added (nested: 2.7e-5 relative between the minima
+    that eight starts reach, with discretization estimates of 6e-6).
+    Farther minima are other geodesics, and add nothing.  Around a circle
+    (:func:`_family_shifts`) the window is 1 %; for the closed curves of a
+    torus it is ``_CLOSED_FAMILY``, as distinct closed geodesics lie closer
+    (two random nested 7-gons: six within 1 %, 1.1e-3 apart at least).
     """
     found = sorted(found, key=lambda rp: rp.length)
     best = found[0]
-    spread = max(rp.length - best.length for rp in found if rp.length <= 1.01 * best.length)
+    spread = max(rp.length - best.length for rp in found if rp.length <= (1 + family) * best.length)
     return RefinedPath(best.points, best.length, best.upper, best.error_estimate + spread, best.segments)
 
 
@@ -929,7 +938,8 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
             classes = sorted({k[1] for k in keys if k[0] == "closed" and k[1] not in loops})
             if not classes:
                 return False
-            loops.update(closed_curve_distances(graph, most=_CLOSED_STARTS, classes=classes))
+            loops.update(closed_curve_distances(graph, most=_CLOSED_STARTS, classes=classes,
+                                                margin=_STENCIL_BIAS.get(settings["neighbours"], 0.1) + _CLOSED_MARGIN))
             for c, found in loops.items():
                 grid_costs[("closed", c)] = found[0][0]
             return True
@@ -953,7 +963,7 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
             # a chosen closed curve again from the grid's other closed curves of its class (closed_curve_distances)
             starts = {k: [GeodesicJob(np.asarray(p, dtype=float), closed=True) for _, p in loops[k[1]][1:]]
                       for k in keys if k[0] == "closed"}
-            return _more_starts(domain, metric, starts, cache, tol, atol)
+            return _more_starts(domain, metric, starts, cache, tol, atol, family=_CLOSED_FAMILY)
 
         def ends(key):
             if key[0] == "closed":

@@ -402,18 +402,30 @@ def test_closed_curve_bounds_are_below_every_closed_grid_curve(scene):
 @pytest.mark.parametrize("scene", [direct.scenes.get("nested"), polygon_pair(17, 0.3, 0.2, 1),
                                    polygon_pair(12, 0.6)], ids=["nested", "deep", "overlapping"])
 def test_stopped_closed_curve_searches_are_the_full_searches(scene):
-    """``closed_curve_distances`` stops each base point's search at 1.01 times the shortest closed curve found so
-    far: its lengths and routes are those of full searches from every base point (one scipy call, no limit),
-    picked by the same rule (local minima along the seam within 1 % of the best), class by class; and asking for
-    some classes gives those and their opposites only, the same curves."""
+    """``closed_curve_distances`` stops each base point's search at ``1 + margin`` times the shortest closed curve
+    found so far: its lengths and routes are those of full searches from every base point (one scipy call, no
+    limit), picked by the same rule (the shortest first, then the shortest whose routes lie more than two grid
+    steps from those picked, within ``1 + margin`` of the shortest; distances here by brute force over the nine
+    nearest periodic copies), class by class; and asking for some classes gives those and their opposites only,
+    the same curves."""
     from scipy.sparse.csgraph import dijkstra
+    from scipy.spatial.distance import cdist
 
     from direct.geodesics import _COVER, _cover_matrix, _cover_polyline, closed_curve_distances
 
     graph = _torus_graph(scene)
     N, M = graph.n_nodes, _cover_matrix(graph)
-    found = closed_curve_distances(graph, most=3)
+    S, V = graph.domain.local_lengths
+    margin = 0.04
+    found = closed_curve_distances(graph, most=3, margin=margin)
     assert len(found) == 8
+
+    def apart(p, q):  # Hausdorff distance on the torus, in grid steps, more than 2
+        p, q = p / graph.h, q / graph.h
+        copies = [cdist(p, q + np.array([i * S, j * V]) / graph.h) for i in (-1, 0, 1) for j in (-1, 0, 1)]
+        r = np.min(copies, axis=0)
+        return max(r.min(axis=1).max(), r.min(axis=0).max()) > 2.0
+
     for axis, classes in ((0, ((1, 0), (1, 1), (1, -1))), (1, ((0, 1),))):
         seam = np.flatnonzero(np.isfinite(graph.coords[:, 0]) & np.isclose(graph.coords[:, axis], 0.0))
         seam = seam[np.unique(np.linspace(0, len(seam) - 1, min(24, len(seam))).astype(int))]
@@ -422,17 +434,24 @@ def test_stopped_closed_curve_searches_are_the_full_searches(scene):
         for c in classes:
             tgt = seam + N * _COVER.index(c)
             d = dist[np.arange(len(src)), tgt]
-            is_min = (d <= np.roll(d, 1)) & (d <= np.roll(d, -1))
-            picked = np.flatnonzero(is_min & (d <= 1.01 * d.min()))
-            picked = picked[np.argsort(d[picked], kind="stable")][:3]
-            assert [length for length, _ in found[c]] == d[picked].tolist(), c
-            for k, (_, poly) in zip(picked, found[c]):
+            picked, routes = [], []
+            for k in np.argsort(d, kind="stable"):
+                if d[k] > (1 + margin) * d.min() or len(picked) == 3:
+                    break
                 nodes = [int(tgt[k])]
                 while nodes[-1] != src[k]:
                     nodes.append(int(pred[k, nodes[-1]]))
-                np.testing.assert_array_equal(poly, _cover_polyline(graph, nodes[::-1]))
+                at = graph.coords[np.array(nodes[::-1]) % N]
+                if all(apart(at, other) for other in routes):
+                    picked.append((k, nodes[::-1]))
+                    routes.append(at)
+            assert [length for length, _ in found[c]] == [d[k] for k, _ in picked], c
+            for (_, nodes), (_, poly) in zip(picked, found[c]):
+                np.testing.assert_array_equal(poly, _cover_polyline(graph, nodes))
             np.testing.assert_array_equal(found[(-c[0], -c[1])][0][1], found[c][0][1][::-1])
-    some = closed_curve_distances(graph, most=3, classes=[(-1, 1), (0, 1)])
+    if scene.name == "nested":  # not vacuous: around the circles, a family of shifted copies, several starts apart
+        assert len(found[(1, 0)]) == 3
+    some = closed_curve_distances(graph, most=3, margin=margin, classes=[(-1, 1), (0, 1)])
     assert set(some) == {(1, -1), (-1, 1), (0, 1), (0, -1)}
     for c, curves in some.items():
         assert [length for length, _ in curves] == [length for length, _ in found[c]]
@@ -683,3 +702,45 @@ def test_a_figure_eight_on_an_unevenly_spaced_reference_circle():
     for p in b.pairs:
         exact = segment_lengths(get_metric("G"), comps, p.path[:-1], p.path[1:]).sum()
         assert exact == pytest.approx(p.polyline_length, rel=1e-9)
+
+
+#: two random 7-gons deformed one inside the other, without a crossing (an adversarial review): only closed curves
+NESTED_7 = [
+    {"name": "a", "closed": True,
+     "reference": [[-0.9999812258431823, 0.006127639118497409], [-0.6282688775394631, -0.7779962837413191],
+                   [0.21654274990100467, -0.9762731367119096], [0.8982932699989085, -0.4393964053957065],
+                   [0.9036106359443019, 0.42835478123669196], [0.2284907627258056, 0.973546080752719],
+                   [-0.6186873151873751, 0.7856373247410268]],
+     "deformed": [[0.1660108225639309, 0.6472887226216566], [0.05855679955182944, 0.6871495839530941],
+                  [-0.22515579103824798, 0.396776824664185], [-0.47140163419246256, 0.14407843743809867],
+                  [-0.39457282925796466, -0.04479249177561903], [-0.3028149733276996, -0.10384641223285002],
+                  [0.602411255671242, 0.022877179936567404]]},
+    {"name": "b", "closed": True,
+     "reference": [[-0.7221877677689428, 2.3083029361888894], [0.09051383258716522, 2.004104801643073],
+                   [0.8350566708594349, 2.4498360640198618], [0.9507848039227603, 3.3098519914887725],
+                   [0.3505525871567584, 3.9365430495378755], [-0.5136528777078928, 3.8579980892883157],
+                   [-0.9910672490492832, 3.1333630678332125]],
+     "deformed": [[0.8613670514166641, 0.18162665297180536], [0.5624714873874339, 0.7510200528832931],
+                  [0.2920671250531245, 0.9433864518687304], [0.23824598959288343, 1.1377774544066945],
+                  [-0.9761099649668795, 0.4597068970299919], [-0.43336796400820377, -0.8293247809969382],
+                  [0.6569125810321658, -0.46830850195823737]]},
+]
+
+
+def test_closed_geodesics_closer_than_the_grid_can_rank():
+    """Two random nested 7-gons: six closed geodesics of the class the program picks lie within 1 % of each other
+    (1.786 to 1.803), and the grid's shortest closed curve refines to the fourth. Listed ``(b, a)``, ``J`` came out
+    7.0e-3 above (3.5967, estimate 3.8e-4, no warning), proved by the exact length of the curves of the listing
+    with ``b`` started at its vertex 2 (3.5716); the grid's closed curves within its bias, on routes apart, now all
+    start a refinement. The three listings agree within their estimates, each below the others' upper bounds."""
+    a, b = NESTED_7
+    b2 = dict(b, reference=np.roll(b["reference"], -2, 0).tolist(), deformed=np.roll(b["deformed"], -2, 0).tolist())
+    results = []
+    for comps in ([b, a], [a, b], [a, b2]):
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")  # and no warning
+            results.append(direct.penalty(direct.Scene.from_dict({"components": comps})))
+    for r, s in itertools.permutations(results, 2):
+        assert abs(r.value - s.value) <= r.error_estimate + s.error_estimate
+        assert r.value - r.error_estimate <= s.upper_bound
+    assert all(r.error_estimate < 1e-3 * r.value for r in results)
