@@ -744,3 +744,78 @@ def test_closed_geodesics_closer_than_the_grid_can_rank():
         assert abs(r.value - s.value) <= r.error_estimate + s.error_estimate
         assert r.value - r.error_estimate <= s.upper_bound
     assert all(r.error_estimate < 1e-3 * r.value for r in results)
+
+
+#: a 13-gon entered by an interval, one crossing (a cylinder of M x M; an adversarial review)
+ENTERED_13 = [
+    {"name": "a", "closed": True,
+     "reference": [[-0.997582764204796, -0.0694883339958472], [-0.851022830658335, -0.5251286906066693],
+                   [-0.5095038225449522, -0.8604683926862635], [-0.051263628873207776, -0.9986851557697001],
+                   [0.41872044437968803, -0.9081151851271273], [0.7927807099535774, -0.6095069695462897],
+                   [0.9852244689203611, -0.17126805259765282], [0.9519651752994577, 0.3062063111973245],
+                   [0.7006221324414768, 0.7135324992830794], [0.2887750024531558, 0.9573969907818699],
+                   [-0.18922700048114155, 0.981933369577035], [-0.6238793780377752, 0.7815206469820224],
+                   [-0.9156085086475083, 0.40207096250821894]],
+     "deformed": [[0.6586184468329808, 0.7764726366907047], [0.4161180059789507, 0.8496344698575807],
+                  [-0.6423452524137121, 0.8398230024498685], [-1.0338310968916535, 0.1434716561336162],
+                  [-1.2133508291863206, 0.11692773094849046], [-0.999208420802318, 0.09850887490788836],
+                  [-0.6171221245418059, -0.44383142588084457], [-0.5858275701795808, -0.9853327597151859],
+                  [-0.22841789589028433, -0.8552897289892248], [1.0473705844988275, -0.37680089657717053],
+                  [0.9726585562775868, -0.24663319124151337], [0.852235164806702, -0.11361386194213136],
+                  [1.1443459413412875, -0.11637208390761167]]},
+    {"name": "b", "closed": False,
+     "reference": [[0.0, 3.0], [0.6853152415458719, 3.0], [1.0807094941751407, 3.0], [1.6106675005493816, 3.0],
+                   [2.091575030500336, 3.0], [2.4769399402234735, 3.0], [2.887615770151367, 3.0],
+                   [3.668869475814556, 3.0]],
+     "deformed": [[1.3443728604503564, -1.1969384328713513], [1.8007946277998632, -1.072904663711502],
+                  [1.333446164310181, -1.066403002337159], [0.9967328432643415, -0.48320283866369773],
+                  [0.8378517734141462, -0.28121428545718974], [0.7050391766817965, 0.14140550494123832],
+                  [0.42748948963288635, 0.06399877588364843], [-0.7212546138316546, 0.4373238502059297]]},
+]
+
+
+def test_a_curve_pinned_at_a_corner_of_the_cells_is_refined_from_beside_it():
+    """The 13-gon entered by an interval: the grid routes the curve from the crossing point to the boundary
+    through a corner of the cells (a vertex line of each component), and the refinement kept it there, 1.6e-4
+    (relative) above the geodesic that passes 9e-3 beside it, with an estimate of 7e-5 and no warning at
+    ``tol=1e-4``; listed from its vertex 10, the first grid's route missed the corner. Each listing's value, less
+    its estimate, is now below the other's ``upper_bound`` (the exact length of its curves)."""
+    a, b = ENTERED_13
+    a10 = dict(a, reference=np.roll(a["reference"], -10, 0).tolist(),
+               deformed=np.roll(a["deformed"], -10, 0).tolist())
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", direct.ToleranceWarning)
+        r, s = (direct.penalty(direct.Scene.from_dict({"components": [c, b]}), tol=1e-4) for c in (a, a10))
+    assert r.value - r.error_estimate <= s.upper_bound
+    assert s.value - s.error_estimate <= r.upper_bound
+    assert abs(r.value - s.value) <= 1e-5 * r.value
+
+
+def test_corner_vertices_and_the_starts_that_leave_them():
+    """``_corner_vertices`` finds the vertices of a polyline on a corner of the cells (within 1e-3 of the longer
+    segment from a vertex line of both components), not those on one line only; ``_corner_starts`` moves them
+    across the curve, to the left and to the right, and leaves the other vertices and the ends as they were."""
+    import sys
+
+    from direct.crossings import find_crossings
+    from direct.refinement import GeodesicJob, RefinedPath
+
+    P = sys.modules["direct.penalty"]
+    sc = direct.Scene.from_dict({"components": ENTERED_13})
+    (dom,) = [d for d in domains(sc, find_crossings(sc)) if d.kind == "cylinder"]
+    va, vb = dom.comps[0].params[3], dom.comps[1].params[2]  # a corner of the cells
+    X = np.array([[va - 0.3, vb - 0.2], [va - 0.1, vb - 0.1], [va, vb + 1e-7], [va + 0.1, vb + 0.05],
+                  [va + 0.2, vb + 0.3], [va + 0.25, 0.5 * (dom.comps[1].params[2] + dom.comps[1].params[3])]])
+    assert P._corner_vertices(dom, X, closed=False).tolist() == [2]
+    assert P._corner_vertices(dom, X + [0.0, 1e-3], closed=False).tolist() == []  # on the line va only
+    path = RefinedPath(X, 1.0, 1.0, 0.0, len(X) - 1)
+    left, right = P._corner_starts(dom, path, GeodesicJob(X, end_ground=1))
+    for start, side in ((left, 1.0), (right, -1.0)):
+        assert start.end_ground == 1 and not start.closed
+        np.testing.assert_array_equal(np.delete(start.route, 2, axis=0), np.delete(X, 2, axis=0))
+        move = start.route[2] - X[2]
+        chord = X[3] - X[1]
+        assert abs(move @ chord) < 1e-12  # across the curve
+        assert np.sign(chord[0] * move[1] - chord[1] * move[0]) == side
+        assert np.linalg.norm(move) > 0.02
+    assert P._corner_starts(dom, RefinedPath(X + [0.0, 1e-3], 1.0, 1.0, 0.0, 5), GeodesicJob(X)) == []

@@ -174,9 +174,11 @@ def test_a_crease_by_a_sliding_end_is_covered_by_the_second_pass(tol, second_pas
     assert err <= res.error_estimate
 
 
-@pytest.mark.xfail(reason="known limitation: at the default tol=1e-3 one start and the route check settle in the "
-                          "longer local geodesic, 2.7e-4 off with an estimate of 1.1e-4 (within tol)")
 def test_a_crease_by_a_sliding_end_at_the_default_tol():
+    """At the default tol=1e-3 one start and the route check settled in the longer local geodesic, 2.7e-4 off
+    with an estimate of 1.1e-4 (within tol; an ``xfail`` until stop 27): the route ran through a corner of the
+    cells and the refinement stayed there. The starts beside the corner (``_corner_starts``) find the geodesic."""
     scene, exact = _crease_by_a_sliding_end()
     res = direct.penalty(scene)
     assert abs(res.value - exact) <= res.error_estimate
+    assert abs(res.value - exact) <= 1e-6 * exact
