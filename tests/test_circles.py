@@ -793,8 +793,8 @@ def test_a_curve_pinned_at_a_corner_of_the_cells_is_refined_from_beside_it():
 
 def test_corner_vertices_and_the_starts_that_leave_them():
     """``_corner_vertices`` finds the vertices of a polyline on a corner of the cells (within 1e-2 of the longer
-    segment from a vertex line of both components, the curve crossing both there), not those on one line only nor
-    those of a curve along one of the lines; ``_corner_starts`` moves them
+    segment from a vertex line of both components, a curve along one of the lines too), not those on one line only;
+    ``_corner_starts`` moves them
     across the curve, to the left and to the right, and leaves the other vertices and the ends as they were."""
     import sys
 
@@ -810,8 +810,8 @@ def test_corner_vertices_and_the_starts_that_leave_them():
     assert P._corner_vertices(dom, X, closed=False).tolist() == [2]
     assert P._corner_vertices(dom, X + [0.0, 0.05], closed=False).tolist() == []  # on the line va only
     riding = X.copy()
-    riding[1:4, 0] = va  # along the line va through the corner (a crease): not held there
-    assert P._corner_vertices(dom, riding, closed=False).tolist() == []
+    riding[1:4, 0] = va  # along the line va through the corner (a crease): held there too
+    assert P._corner_vertices(dom, riding, closed=False).tolist() == [2]
     path = RefinedPath(X, 1.0, 1.0, 0.0, len(X) - 1)
     left, right = P._corner_starts(dom, path, GeodesicJob(X, end_ground=1))
     for start, side in ((left, 1.0), (right, -1.0)):
