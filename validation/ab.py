@@ -97,6 +97,17 @@ def worktree(rev: str | None):
             subprocess.run(["git", "worktree", "remove", "--force", tree], cwd=ROOT, check=False)
 
 
+def at_revision(rev: str, code: str) -> None:
+    """Run ``code`` (Python, with this directory importable) against the ``direct`` of git revision ``rev``.
+
+    The studies' ``--rev REV``: the revision is checked out into a temporary worktree (:func:`worktree`),
+    and ``code`` runs in a fresh process whose ``import direct`` finds that checkout.
+    """
+    with worktree(rev) as tree:
+        subprocess.run([sys.executable, "-c", f"import sys; sys.path.insert(0, {HERE!r}); {code}"], cwd=tree,
+                       env=dict(os.environ, PYTHONPATH=tree), check=True)
+
+
 def run(tree: str, repeat: int, family: str = "standard", tol: float = 1e-3) -> dict:
     """Best times and values of the ``direct`` in ``tree``, measured in a fresh process."""
     code = CHILD.format(validation=HERE, tests=os.path.join(ROOT, "tests"), repeat=repeat, family=family, tol=tol)

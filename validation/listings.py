@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import json
 import os
-import sys
 import time
 import warnings
 
@@ -98,13 +97,8 @@ if __name__ == "__main__":
     ap.add_argument("--rev", help="run the direct of this git revision (a temporary worktree)")
     args = ap.parse_args()
     if args.rev:
-        import subprocess
+        from ab import at_revision
 
-        from ab import worktree
-
-        with worktree(args.rev) as tree:  # the same script, importing that revision's direct
-            code = (f"import sys; sys.path.insert(0, {HERE!r}); import listings as m; "
-                    f"m.main(out={'listings_' + args.rev + '.csv'!r})")
-            subprocess.run([sys.executable, "-c", code], cwd=tree, env=dict(os.environ, PYTHONPATH=tree), check=True)
+        at_revision(args.rev, f"import listings as m; m.main(out={'listings_' + args.rev + '.csv'!r})")
     else:
         main()

@@ -119,13 +119,10 @@ if __name__ == "__main__":
     args = ap.parse_args()
     name = "reparametrized_uneven" if args.uneven else "reparametrized"
     if args.rev:
-        import subprocess
+        from ab import at_revision
 
-        from ab import worktree
-
-        with worktree(args.rev) as tree:  # the same script, importing that revision's direct
-            code = (f"import sys; sys.path.insert(0, {HERE!r}); import reparametrized as r; "
-                    f"r.main(uneven={args.uneven}, out={name + '_' + args.rev + '.csv'!r})")
-            subprocess.run([sys.executable, "-c", code], cwd=tree, env=dict(os.environ, PYTHONPATH=tree), check=True)
+        # the same script, importing that revision's direct
+        at_revision(args.rev, f"import reparametrized as r; r.main(uneven={args.uneven}, "
+                              f"out={name + '_' + args.rev + '.csv'!r})")
     else:
         main(uneven=args.uneven, out=name + ".csv")
