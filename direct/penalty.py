@@ -1001,7 +1001,7 @@ def _best_of_starts(found: list[RefinedPath], family: float = 0.01) -> RefinedPa
     Starts that settle in nearby minima (within ``family``, relative: the
     same family of geodesics, shifted) leave the global one unknown to about
     their spread, which is added (nested: 2.7e-5 relative between the minima
-    that eight starts reach, with discretization estimates of 6e-6).
+    that eight starts reach in a probe, with discretization estimates of 6e-6).
     Farther minima are other geodesics, and add nothing.  Around a circle
     (:func:`_family_shifts`) the window is 1 %; for the closed curves of a
     torus it is ``_CLOSED_FAMILY``, as distinct closed geodesics lie closer
