@@ -190,7 +190,12 @@ def summary(scene, result) -> str:
     Returns
     -------
     str
+        The value is printed in full and every error estimate rounded up
+        (:func:`direct.penalty.rounded_up`), so the printed pair keeps
+        ``|value - J| <= error_estimate``.
     """
+    from .penalty import rounded_up
+
     names = [c.name for c in scene.components]
     lines = [f"scene: {scene.name or '(unnamed)'} ({len(names)} component{'s' if len(names) != 1 else ''})"]
     rows = [
@@ -235,13 +240,13 @@ def summary(scene, result) -> str:
         lines += _table(rows)
     lines.append("")
     lines.append(
-        f"{_symbol(s)} = {_g(result.value)} \u00b1 {result.error_estimate:.1g} "
+        f"{_symbol(s)} = {result.value!r} \u00b1 {rounded_up(result.error_estimate)} "
         f"(grid Dijkstra alone: {_g(result.grid_value)})"
         if math.isfinite(result.error_estimate)
         else f"{_symbol(s)} = {_g(result.value)} (grid Dijkstra alone, no error estimate: its bias is a few per cent)"
     )
     if math.isfinite(result.error_estimate) and result.pairs:
-        lines.append(f"upper bound (the exact length of the curves below): {_g(result.upper_bound, 10)}")
+        lines.append(f"upper bound (the exact length of the curves below): {rounded_up(result.upper_bound, 10)}")
     half = [p for p in result.pairs if _in_half(p, scene)]
     if half:
         lines.append(
@@ -254,7 +259,8 @@ def summary(scene, result) -> str:
             end = "boundary" if p.end is None else f"#{p.end_crossing} {_point(p.end)}"
             if p.closed:
                 start, end = "closed curve", "-"
-            rows.append([f"{p.components[0]} x {p.components[1]}", start, end, _g(p.length), f"{p.error_estimate:.1g}"])
+            rows.append([f"{p.components[0]} x {p.components[1]}", start, end, repr(p.length),
+                         rounded_up(p.error_estimate)])
         lines += _table(rows)
     else:
         lines.append("no curve gamma is needed: J = 0")

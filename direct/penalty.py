@@ -81,6 +81,7 @@ from __future__ import annotations
 import time
 import warnings
 from dataclasses import dataclass, field, replace
+from decimal import Decimal
 from typing import Any
 
 import numpy as np
@@ -95,7 +96,7 @@ from .grid import Domain, build_graph
 from .matching import solve as solve_assignment
 from .matching import solve_flow, solve_torus
 from .metric import Metric, MetricName, _breaks, _vertex_params, get_metric
-from .refinement import GeodesicJob, RefinedPath, coarse_geodesics, polyline_lengths, refine_many
+from .refinement import GeodesicJob, RefinedPath, coarse_geodesics, polyline_lengths, refine_many, screen_starts
 from .scene import Scene
 from .scenes import resolve
 from .topology import exact_reversals, turning_number, winding_number
@@ -131,6 +132,9 @@ _CLOSED_FAMILY = 5e-4
 #: a vertex of a refined curve within this fraction of its longer segment from a vertex line of both components sits
 #: on a corner of the cells, where the refinement can pin it (see _corner_starts)
 _ON_CORNER = 0.01
+#: a start beside a corner is refined when its extrapolation from the level of the curve held lies below that
+#: curve's by more than its estimate and this fraction of the tolerance (see _beside_corners)
+_CORNER_GAIN = 0.1
 
 #: crossings whose tangents make an angle with sine below this are grazing: their domain always gets a second pass
 _GRAZING = 0.1
@@ -307,9 +311,42 @@ class Penalty:
 
     def __repr__(self) -> str:
         return (
-            f"Penalty(value={self.value:.10g}, error_estimate={self.error_estimate:.2g}, "
+            f"Penalty(value={self.value!r}, error_estimate={rounded_up(self.error_estimate)}, "
             f"crossings={len(self.crossings)}, pairs={len(self.pairs)}, metric={self.settings.get('metric')!r})"
         )
+
+
+def rounded_up(x: float, digits: int = 2) -> str:
+    """``x`` in decimal, ``digits`` significant digits, rounded up: an error estimate or an upper bound printed.
+
+    Printed to a few digits, a bound must not shrink: ``4.11e-08`` rounded to
+    ``4e-08`` no longer covers an error of ``4.1e-08``.  The value beside it
+    is printed in full (``repr``), so the two printed numbers keep the
+    contract ``|value - J| <= error_estimate`` (an adversarial review: the
+    text output rounded the value of ``cross`` to 7 digits, 3.3e-9 off,
+    beside an estimate of 1e-15).
+
+    Parameters
+    ----------
+    x : float
+        A non-negative number (an estimate, or an upper bound).
+    digits : int, default 2
+        Significant digits.
+
+    Returns
+    -------
+    str
+        The nearest decimal with ``digits`` significant digits that reads
+        back as a float at least ``x`` (``repr(x)`` when ``x`` is 0,
+        negative, or not finite).
+    """
+    if not np.isfinite(x) or x <= 0:
+        return repr(float(x))
+    text = f"{x:.{digits}g}"
+    if float(text) < x:  # rounded down: one unit up in the last digit
+        d = Decimal(text)
+        text = f"{float(d + Decimal(1).scaleb(d.adjusted() - digits + 1)):.{digits}g}"
+    return text
 
 
 def domains(scene: Scene, crossings: list[Crossing]) -> list[Domain]:
@@ -787,12 +824,36 @@ def _beside_corners(domain: Domain, metric: Metric, starts: dict, held: dict, to
     starts = {k: jobs for k, jobs in starts.items() if jobs}
     if not starts:
         return {}
-    refined = iter(refine_many(domain, metric, [j for jobs in starts.values() for j in jobs], tol=tol, atol=atol))
-    out = {}
-    for k, jobs in starts.items():
-        best = min([next(refined) for _ in jobs], key=lambda rp: rp.length)
-        if best.length < held[k].length:
-            out[k] = replace(best, error_estimate=max(best.error_estimate, held[k].error_estimate))
+    # each start straightened at the coarse scale first (16 segments: where the geodesic beside the corner is
+    # another curve, that finds it), and refined from there if that is shorter than the start itself
+    flat = [(k, j) for k, jobs in starts.items() for j in jobs]
+    coarse = coarse_geodesics(domain, metric, [j for _, j in flat])
+    direct = polyline_lengths(domain, metric, [np.asarray(j.route, dtype=float) for _, j in flat])
+    todo = {}
+    fine = []
+    for (k, j), (X, L), Lr in zip(flat, coarse, direct):
+        if L <= Lr:
+            todo.setdefault(k, []).append(replace(j, route=X, coarse=True))
+        else:
+            fine.append((k, j))
+    # the others, settled at the level of the curve held and at half of it (not three levels, the last two
+    # finer): one whose extrapolation lies below the held curve's by more than the held estimate and a tenth of
+    # the tolerance is refined; a smaller gap is added to the held curve's estimate
+    gaps = {}
+    for (k, j), (X, _, extrap) in zip(fine, screen_starts(domain, metric, [j for _, j in fine], tol=tol) if fine
+                                      else []):
+        gap = held[k].length - extrap
+        if gap > max(_CORNER_GAIN * max(tol * held[k].length, atol), held[k].error_estimate):
+            todo.setdefault(k, []).append(replace(j, route=X, coarse=True))
+        elif gap > 0.0:
+            gaps[k] = max(gaps.get(k, 0.0), gap)
+    out = {k: replace(held[k], error_estimate=held[k].error_estimate + gap) for k, gap in gaps.items()}
+    if todo:
+        refined = iter(refine_many(domain, metric, [j for jobs in todo.values() for j in jobs], tol=tol, atol=atol))
+        for k, jobs in todo.items():
+            best = min([next(refined) for _ in jobs], key=lambda rp: rp.length)
+            if best.length < held[k].length:
+                out[k] = replace(best, error_estimate=max(best.error_estimate, out.get(k, held[k]).error_estimate))
     return out
 
 

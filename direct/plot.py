@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 
 from .errors import SceneError
+from .penalty import rounded_up
 
 __all__ = ["plot_scene", "plot_domain", "plot_penalty"]
 
@@ -579,8 +580,8 @@ def plot_penalty(result, scene, path: str | os.PathLike | None = None):
         f"{k} = {v:g}" if isinstance(v, float) else f"{k} = {v}" for k, v in s.items() if k in ("q", "p", "h")
     )
     head = (
-        f"{scene.name or 'scene'}:  $J^{{{s.get('metric', '?')}}}$ = {result.value:.7g} \u00b1 "
-        f"{result.error_estimate:.1g}   (metric {s.get('metric', '?')}{', ' + extra if extra else ''})"
+        f"{scene.name or 'scene'}:  $J^{{{s.get('metric', '?')}}}$ = {result.value!r} \u00b1 "
+        f"{rounded_up(result.error_estimate)}   (metric {s.get('metric', '?')}{', ' + extra if extra else ''})"
     )
     if pairs:
         head += (

@@ -5,6 +5,8 @@ import subprocess
 import sys
 
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 import direct
 from direct.cli import main
@@ -57,7 +59,7 @@ def test_penalty_json_options_reach_penalty(capsys):
 def test_penalty_summary(capsys, cross_value):
     assert main(["penalty", "cross"]) == 0
     out = capsys.readouterr().out
-    assert f"J^G = {cross_value:.7g}" in out
+    assert f"J^G = {cross_value!r} \u00b1 " in out  # the value in full
     assert "grid Dijkstra alone" in out
     assert "A x B" in out  # the crossings table names the components
     assert "boundary" in out  # the single crossing's curves end on the boundary
@@ -216,3 +218,27 @@ def test_scene_file_with_byte_order_mark_is_read(tmp_path):
     plain.write_text(text, encoding="utf-8")
     marked.write_text(text, encoding="utf-8-sig")
     assert direct.load_scene(marked).to_dict() == direct.load_scene(plain).to_dict()
+
+
+@pytest.mark.parametrize("tol", [1e-3, 1e-5])
+def test_the_printed_value_and_estimate_keep_the_contract(capsys, tol):
+    """The text output prints the value in full and the estimate rounded up: the printed pair still covers the
+    exact value (``cross``: J^G = 2 m^3 / 3 = 1/12). Printed to 7 digits beside an estimate of 1e-15, the value
+    was 3.3e-9 off (an adversarial review)."""
+    import re
+
+    assert main(["penalty", "cross", "--tol", str(tol)]) == 0
+    out = capsys.readouterr().out
+    value, estimate = re.search(r"J\^G = (\S+) \u00b1 (\S+) ", out).groups()
+    assert abs(float(value) - 1 / 12) <= float(estimate)
+    upper = float(re.search(r"upper bound \(the exact length of the curves below\): (\S+)", out).group(1))
+    assert upper >= direct.penalty("cross", tol=tol).upper_bound
+
+
+@given(st.floats(min_value=0.0, max_value=1e300, allow_subnormal=True), st.integers(min_value=1, max_value=17))
+def test_rounded_up_never_prints_less(x, digits):
+    from direct.penalty import rounded_up
+
+    text = rounded_up(x, digits)
+    assert float(text) >= x
+    assert float(text) <= x * (1 + 2 * 10.0 ** (1 - digits)) + 5e-324  # one unit in the last digit at most
