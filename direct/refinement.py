@@ -1458,9 +1458,10 @@ def settle_level(domain: Domain, metric: Metric, jobs: list[GeodesicJob], tol: f
 
     Returns
     -------
-    list of (polyline, length)
-        Each settled polyline and its exact length (in the metric's length
-        units; an upper bound of the distance between its ends).
+    list of (polyline, length, remaining)
+        Each settled polyline, its exact length (in the metric's length
+        units; an upper bound of the distance between its ends), and what
+        further rounds could still gain (:func:`_remaining_gain`).
     """
     scale = float(max(domain.lengths))
     curves = []
@@ -1473,7 +1474,7 @@ def settle_level(domain: Domain, metric: Metric, jobs: list[GeodesicJob], tol: f
     for c, L in zip(curves, polyline_lengths(domain, metric, [c.X for c in curves])):
         c.length = L
     _settle(domain, metric, curves, scale, tol, max_rounds)
-    return [(c.X, float(c.length)) for c in curves]
+    return [(c.X, float(c.length), _remaining_gain(c.gains)) for c in curves]
 
 
 def _halved(X: np.ndarray) -> np.ndarray:
@@ -1485,17 +1486,18 @@ def _halved(X: np.ndarray) -> np.ndarray:
 
 
 def screen_starts(domain: Domain, metric: Metric, jobs: list[GeodesicJob],
-                  tol: float = 1e-3) -> list[tuple[np.ndarray, float, float]]:
+                  tol: float = 1e-3) -> list[tuple[RefinedPath, np.ndarray]]:
     """Where starts lead, cheaply: each settled at its own level, then at half as many segments.
 
     Two levels of :func:`refine_many`, in reverse: each job's polyline is
     settled as it is (:func:`settle_level`), then every other vertex of the
     result is settled again.  The Richardson extrapolation of the two,
-    ``L_n - (L_{n/2} - L_n) / 3`` (an error ~ n^-2), compares the starts with
-    a curve refined to that level on an equal footing: the polyline lengths
-    alone do not, as a geodesic may converge more slowly than another (a
-    crease by a sliding end: a start beside a corner 4.1e-5 relative longer
-    than the curve held at 136 segments, its geodesic 2.7e-4 shorter).
+    ``L_n - (L_{n/2} - L_n) / 3`` (an error ~ n^-2), compares a start with a
+    curve refined to the same level on an equal footing: the polyline
+    lengths alone do not, as a geodesic may converge more slowly than
+    another.  Meant for starts beside a curve refined to level ``n`` already
+    (three levels at least, the last ones in the asymptotic range), not for
+    grid routes.
 
     Parameters
     ----------
@@ -1510,13 +1512,17 @@ def screen_starts(domain: Domain, metric: Metric, jobs: list[GeodesicJob],
 
     Returns
     -------
-    list of (polyline, length, extrapolated)
-        The polyline settled at the finer level, its exact length, and the
-        extrapolated length (metric length units).
+    list of (RefinedPath, polyline)
+        For each start: the curve of the finer level with the extrapolated
+        length, kept within ``[0, upper]``, and the estimate ``|L_{n/2} -
+        L_n|`` (three times the correction) plus what further rounds of the
+        finer level could still gain; and the polyline settled at the
+        coarser level (parameters).
     """
     fine = settle_level(domain, metric, jobs, tol)
-    half = settle_level(domain, metric, [replace(j, route=_halved(X)) for j, (X, _) in zip(jobs, fine)], tol)
-    return [(X, L, L - (Lh - L) / 3.0) for (X, L), (_, Lh) in zip(fine, half)]
+    half = settle_level(domain, metric, [replace(j, route=_halved(X)) for j, (X, _, _) in zip(jobs, fine)], tol)
+    return [(RefinedPath(X, min(max(L - (Lh - L) / 3.0, 0.0), L), L, abs(Lh - L) + rest, len(X) - 1), Xh)
+            for (X, L, rest), (Xh, Lh, _) in zip(fine, half)]
 
 
 def refine(

@@ -871,9 +871,9 @@ def test_a_start_beside_a_corner_keeps_the_estimate_of_the_curve_it_replaces(mon
     estimates: a start that settles a little lower in the same geodesic must not drop what the held estimate
     covers (the spread of a family of closed curves: ``nested`` listed from another vertex came out 7.2e-5 above
     ``J`` with an estimate of 8.0e-6); a longer start changes nothing. A start whose coarse geodesic is no
-    shorter than itself is screened at the held curve's level: refined only when its extrapolation lies below
-    the held curve's by more than the held estimate and a tenth of the tolerance, a smaller gap added to the
-    held estimate."""
+    shorter than itself is screened at the held curve's level and half of it: refined from the coarser level
+    when its extrapolation lies below the held curve's by more than a tenth of the tolerance; a smaller gap is
+    added to the held estimate."""
     import sys
 
     from direct.refinement import GeodesicJob, RefinedPath
@@ -883,10 +883,11 @@ def test_a_start_beside_a_corner_keeps_the_estimate_of_the_curve_it_replaces(mon
     held = {"k": RefinedPath(X, 2.0, 2.0, 1e-4, 1)}
     calls = []
 
-    def run(coarse, direct_lengths, extrap, refined):
+    def run(coarse, direct_lengths, screened, refined):
         monkeypatch.setattr(P, "coarse_geodesics", lambda domain, metric, jobs: [(X, L) for L in coarse])
         monkeypatch.setattr(P, "polyline_lengths", lambda domain, metric, routes: np.array(direct_lengths))
-        monkeypatch.setattr(P, "screen_starts", lambda domain, metric, jobs, tol: [(X, 2.0, e) for e in extrap])
+        monkeypatch.setattr(P, "screen_starts", lambda domain, metric, jobs, tol: [
+            (RefinedPath(X, L, L + e, e, 1), X) for L, e in screened])
 
         def refine_many(domain, metric, jobs, tol, atol):
             calls.append(len(jobs))
@@ -901,10 +902,11 @@ def test_a_start_beside_a_corner_keeps_the_estimate_of_the_curve_it_replaces(mon
     assert run((2.1, 2.2), (2.5, 2.5), (), (1.9999, 2.5)) == (1.9999, 1e-4)
     assert run((2.1, 2.2), (2.5, 2.5), (), (2.1, 2.5)) is None  # longer: nothing changes
     assert calls == [2, 2]
-    # neither: screened; a gap of 3e-4 (above 1e-4 and tol / 10 * 2) is refined, from that start only
-    assert run((2.6, 2.6), (2.5, 2.5), (1.9997, 2.01), (1.9998,)) == (1.9998, 1e-4)
-    assert calls[-1] == 1
-    # gaps within the held estimate: added to it, nothing refined; no gap: nothing at all
-    assert run((2.6, 2.6), (2.5, 2.5), (1.99995, 2.01), ()) == (2.0, pytest.approx(1.5e-4))
-    assert run((2.6, 2.6), (2.5, 2.5), (2.00001, 2.01), ()) is None
+    # neither: screened; a gap of 3e-4 (above tol / 10 * 2) is refined, from that start only (its two levels
+    # alone can stop short of the geodesic it leads to)
+    assert run((2.6, 2.6), (2.5, 2.5), ((1.9997, 1e-6), (2.01, 1e-6)), (1.9998,)) == (1.9998, 1e-4)
+    assert calls == [2, 2, 1]
+    # gaps below a tenth of the tolerance: added to the estimate, nothing refined; no gap: nothing at all
+    assert run((2.6, 2.6), (2.5, 2.5), ((1.99985, 1e-6), (2.01, 1e-6)), ()) == (2.0, pytest.approx(2.5e-4))
+    assert run((2.6, 2.6), (2.5, 2.5), ((2.00001, 1e-6), (2.01, 1e-6)), ()) is None
     assert calls == [2, 2, 1]
