@@ -96,7 +96,7 @@ from .grid import Domain, build_graph
 from .matching import solve as solve_assignment
 from .matching import solve_flow, solve_torus
 from .metric import Metric, MetricName, _breaks, _vertex_params, get_metric
-from .refinement import GeodesicJob, RefinedPath, coarse_geodesics, polyline_lengths, refine_many, screen_starts
+from .refinement import GeodesicJob, RefinedPath, coarse_geodesics, polyline_lengths, refine_many
 from .scene import Scene
 from .scenes import resolve
 from .topology import exact_reversals, turning_number, winding_number
@@ -132,9 +132,6 @@ _CLOSED_FAMILY = 5e-4
 #: a vertex of a refined curve within this fraction of its longer segment from a vertex line of both components sits
 #: on a corner of the cells, where the refinement can pin it (see _corner_starts)
 _ON_CORNER = 0.01
-#: a start beside a corner is refined when its extrapolation from the level of the curve held lies below that
-#: curve's by more than this fraction of the tolerance (see _beside_corners)
-_CORNER_GAIN = 0.1
 
 #: crossings whose tangents make an angle with sine below this are grazing: their domain always gets a second pass
 _GRAZING = 0.1
@@ -320,11 +317,11 @@ def rounded_up(x: float, digits: int = 2) -> str:
     """``x`` in decimal, ``digits`` significant digits, rounded up: an error estimate or an upper bound printed.
 
     Printed to a few digits, a bound must not shrink: ``4.11e-08`` rounded to
-    ``4e-08`` no longer covers an error of ``4.1e-08``.  The value beside it
-    is printed in full (``repr``), so the two printed numbers keep the
+    ``4.1e-08`` no longer covers an error of ``4.105e-08``.  The value beside
+    it is printed in full (``repr``), so the two printed numbers keep the
     contract ``|value - J| <= error_estimate`` (an adversarial review: the
-    text output rounded the value of ``cross`` to 7 digits, 3.3e-9 off,
-    beside an estimate of 1e-15).
+    text output of ``direct penalty`` rounded the value of ``cross`` to 7
+    digits, 3.3e-9 off, beside an estimate printed as 1e-15).
 
     Parameters
     ----------
@@ -824,44 +821,12 @@ def _beside_corners(domain: Domain, metric: Metric, starts: dict, held: dict, to
     starts = {k: jobs for k, jobs in starts.items() if jobs}
     if not starts:
         return {}
-    # each start straightened at the coarse scale first (16 segments: where the geodesic beside the corner is
-    # another curve, that finds it), and refined from there if that is shorter than the start itself
-    flat = [(k, j) for k, jobs in starts.items() for j in jobs]
-    coarse = coarse_geodesics(domain, metric, [j for _, j in flat])
-    direct = polyline_lengths(domain, metric, [np.asarray(j.route, dtype=float) for _, j in flat])
-    todo = {}
-    fine = []
-    for (k, j), (X, L), Lr in zip(flat, coarse, direct):
-        if L <= Lr:
-            todo.setdefault(k, []).append(replace(j, route=X, coarse=True))
-        else:
-            fine.append((k, j))
-    # the others, settled at the level of the curve held and at half of it (not three levels, the last two
-    # finer): one whose extrapolation lies below the held curve's by more than a tenth of the tolerance is refined
-    # from the coarser of the two. Not replaced by its two levels: a start that leaves a corner may not have
-    # settled in its new geodesic (entered_13 of validation/listings.py at tol=1e-4: 7.9e-5 above the refined
-    # curve, with an estimate of 1.4e-5). A smaller gap is added to the held curve's estimate (absorbing gaps up to
-    # the held estimate left entered_13 at tol=1e-3 1.7e-4 high, covered by an estimate grown to 3.9e-4)
-    gaps, out = {}, {}
-    for (k, j), (rp, half) in zip(fine, screen_starts(domain, metric, [j for _, j in fine], tol=tol) if fine else []):
-        h = held[k]
-        budget = max(tol * h.length, atol)
-        gap = h.length - rp.length
-        if gap <= 0.0:
-            continue
-        if gap <= _CORNER_GAIN * budget:
-            gaps[k] = max(gaps.get(k, 0.0), gap)
-        else:  # refined from the coarser level
-            todo.setdefault(k, []).append(replace(j, route=half, coarse=True))
-    for k, gap in gaps.items():
-        if k not in out:
-            out[k] = replace(held[k], error_estimate=held[k].error_estimate + gap)
-    if todo:
-        refined = iter(refine_many(domain, metric, [j for jobs in todo.values() for j in jobs], tol=tol, atol=atol))
-        for k, jobs in todo.items():
-            best = min([next(refined) for _ in jobs], key=lambda rp: rp.length)
-            if best.length < out.get(k, held[k]).length:
-                out[k] = replace(best, error_estimate=max(best.error_estimate, out.get(k, held[k]).error_estimate))
+    refined = iter(refine_many(domain, metric, [j for jobs in starts.values() for j in jobs], tol=tol, atol=atol))
+    out = {}
+    for k, jobs in starts.items():
+        best = min([next(refined) for _ in jobs], key=lambda rp: rp.length)
+        if best.length < held[k].length:
+            out[k] = replace(best, error_estimate=max(best.error_estimate, held[k].error_estimate))
     return out
 
 

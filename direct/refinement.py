@@ -40,7 +40,7 @@ refining it alone.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
@@ -52,8 +52,7 @@ from scipy.sparse.linalg import spsolve
 from .grid import Domain, deformed_speeds
 from .metric import Metric, _breaks, _vertex_params, segment_lengths
 
-__all__ = ["refine", "refine_many", "settle_level", "screen_starts", "coarse_geodesic", "coarse_geodesics",
-           "RefinedPath", "GeodesicJob"]
+__all__ = ["refine", "refine_many", "coarse_geodesic", "coarse_geodesics", "RefinedPath", "GeodesicJob"]
 
 
 
@@ -1428,101 +1427,6 @@ def refine_many(
         live = nxt
         n *= 2
     return [c.result for c in curves]
-
-
-def settle_level(domain: Domain, metric: Metric, jobs: list[GeodesicJob], tol: float = 1e-3,
-                 max_rounds: int = 8) -> list[tuple[np.ndarray, float]]:
-    """Settle polylines at their own level: one level of :func:`refine_many`, no doubling, no estimate.
-
-    Each job's ``route`` is taken as the polyline itself (its vertices kept,
-    the crossings with the cell lines inserted), its ends held as the job
-    says, and moved by the rounds of one level of :func:`refine_many` (the
-    same Newton steps, polish and stopping rule, with ``tol``).  Cheap next to
-    a refinement, which needs three levels at least, the last two finer: it
-    tells whether a start leads somewhere shorter than a curve already
-    refined at that level.
-
-    Parameters
-    ----------
-    domain : Domain
-        The pair domain.
-    metric : Metric
-        The metric on M x M.
-    jobs : list of GeodesicJob
-        The polylines (parameters, unwrapped) and how their ends are held.
-    tol : float, default 1e-3
-        Relative tolerance: the rounds stop when what more rounds could gain
-        is below ``tol / 100`` of the length.
-    max_rounds : int, default 8
-        Most rounds of normal moves.
-
-    Returns
-    -------
-    list of (polyline, length, remaining)
-        Each settled polyline, its exact length (in the metric's length
-        units; an upper bound of the distance between its ends), and what
-        further rounds could still gain (:func:`_remaining_gain`).
-    """
-    scale = float(max(domain.lengths))
-    curves = []
-    for job in jobs:
-        X, modes = _initial_polyline(domain, np.asarray(job.route, dtype=float), 1, job.start_ground,
-                                     job.end_ground, job.closed)
-        if not job.closed:
-            X, modes = _grade_ends(domain, X, modes, job.start_ground, job.end_ground, scale)
-        curves.append(_Curve(job, X, modes))
-    for c, L in zip(curves, polyline_lengths(domain, metric, [c.X for c in curves])):
-        c.length = L
-    _settle(domain, metric, curves, scale, tol, max_rounds)
-    return [(c.X, float(c.length), _remaining_gain(c.gains)) for c in curves]
-
-
-def _halved(X: np.ndarray) -> np.ndarray:
-    """Every other vertex of a polyline, both ends kept."""
-    idx = np.arange(0, len(X), 2)
-    if idx[-1] != len(X) - 1:
-        idx = np.append(idx, len(X) - 1)
-    return X[idx]
-
-
-def screen_starts(domain: Domain, metric: Metric, jobs: list[GeodesicJob],
-                  tol: float = 1e-3) -> list[tuple[RefinedPath, np.ndarray]]:
-    """Where starts lead, cheaply: each settled at its own level, then at half as many segments.
-
-    Two levels of :func:`refine_many`, in reverse: each job's polyline is
-    settled as it is (:func:`settle_level`), then every other vertex of the
-    result is settled again.  The Richardson extrapolation of the two,
-    ``L_n - (L_{n/2} - L_n) / 3`` (an error ~ n^-2), compares a start with a
-    curve refined to the same level on an equal footing: the polyline
-    lengths alone do not, as a geodesic may converge more slowly than
-    another.  Meant for starts beside a curve refined to level ``n`` already
-    (three levels at least, the last ones in the asymptotic range), not for
-    grid routes.
-
-    Parameters
-    ----------
-    domain : Domain
-        The pair domain.
-    metric : Metric
-        The metric on M x M.
-    jobs : list of GeodesicJob
-        The starts: polylines (parameters, unwrapped), their ends held as the job says.
-    tol : float, default 1e-3
-        Relative tolerance of the rounds of each level (see :func:`settle_level`).
-
-    Returns
-    -------
-    list of (RefinedPath, polyline)
-        For each start: the curve of the finer level with the extrapolated
-        length, kept within ``[0, upper]``, and the estimate ``|L_{n/2} -
-        L_n|`` (three times the correction) plus what further rounds of the
-        finer level could still gain; and the polyline settled at the
-        coarser level (parameters).
-    """
-    fine = settle_level(domain, metric, jobs, tol)
-    half = settle_level(domain, metric, [replace(j, route=_halved(X)) for j, (X, _, _) in zip(jobs, fine)], tol)
-    return [(RefinedPath(X, min(max(L - (Lh - L) / 3.0, 0.0), L), L, abs(Lh - L) + rest, len(X) - 1), Xh)
-            for (X, L, rest), (Xh, Lh, _) in zip(fine, half)]
 
 
 def refine(

@@ -870,10 +870,7 @@ def test_a_start_beside_a_corner_keeps_the_estimate_of_the_curve_it_replaces(mon
     """``_beside_corners`` keeps the shortest of the curve held and its starts, with the larger of the two
     estimates: a start that settles a little lower in the same geodesic must not drop what the held estimate
     covers (the spread of a family of closed curves: ``nested`` listed from another vertex came out 7.2e-5 above
-    ``J`` with an estimate of 8.0e-6); a longer start changes nothing. A start whose coarse geodesic is no
-    shorter than itself is screened at the held curve's level and half of it: refined from the coarser level
-    when its extrapolation lies below the held curve's by more than a tenth of the tolerance; a smaller gap is
-    added to the held estimate."""
+    ``J`` with an estimate of 8.0e-6); a longer start changes nothing."""
     import sys
 
     from direct.refinement import GeodesicJob, RefinedPath
@@ -881,32 +878,8 @@ def test_a_start_beside_a_corner_keeps_the_estimate_of_the_curve_it_replaces(mon
     P = sys.modules["direct.penalty"]
     X = np.array([[0.0, 0.0], [1.0, 1.0]])
     held = {"k": RefinedPath(X, 2.0, 2.0, 1e-4, 1)}
-    calls = []
-
-    def run(coarse, direct_lengths, screened, refined):
-        monkeypatch.setattr(P, "coarse_geodesics", lambda domain, metric, jobs: [(X, L) for L in coarse])
-        monkeypatch.setattr(P, "polyline_lengths", lambda domain, metric, routes: np.array(direct_lengths))
-        monkeypatch.setattr(P, "screen_starts", lambda domain, metric, jobs, tol: [
-            (RefinedPath(X, L, L + e, e, 1), X) for L, e in screened])
-
-        def refine_many(domain, metric, jobs, tol, atol):
-            calls.append(len(jobs))
-            assert all(j.coarse for j in jobs)  # from the coarse geodesic or the screened polyline, no second pass
-            return [RefinedPath(X, L, L, 1e-7, 1) for L in refined]
-
-        monkeypatch.setattr(P, "refine_many", refine_many)
+    for lengths, want in (((1.9999, 2.5), (1.9999, 1e-4)), ((2.1, 2.5), None)):
+        monkeypatch.setattr(P, "refine_many", lambda domain, metric, jobs, tol, atol, lengths=lengths: [
+            RefinedPath(X, L, L, 1e-7, 1) for L in lengths])
         out = P._beside_corners(None, None, {"k": [GeodesicJob(X), GeodesicJob(X)]}, held, 1e-3, 0.0)
-        return None if not out else (out["k"].length, out["k"].error_estimate)
-
-    # both coarse geodesics shorter than their starts: refined; the shorter result kept with the held estimate
-    assert run((2.1, 2.2), (2.5, 2.5), (), (1.9999, 2.5)) == (1.9999, 1e-4)
-    assert run((2.1, 2.2), (2.5, 2.5), (), (2.1, 2.5)) is None  # longer: nothing changes
-    assert calls == [2, 2]
-    # neither: screened; a gap of 3e-4 (above tol / 10 * 2) is refined, from that start only (its two levels
-    # alone can stop short of the geodesic it leads to)
-    assert run((2.6, 2.6), (2.5, 2.5), ((1.9997, 1e-6), (2.01, 1e-6)), (1.9998,)) == (1.9998, 1e-4)
-    assert calls == [2, 2, 1]
-    # gaps below a tenth of the tolerance: added to the estimate, nothing refined; no gap: nothing at all
-    assert run((2.6, 2.6), (2.5, 2.5), ((1.99985, 1e-6), (2.01, 1e-6)), ()) == (2.0, pytest.approx(2.5e-4))
-    assert run((2.6, 2.6), (2.5, 2.5), ((2.00001, 1e-6), (2.01, 1e-6)), ()) is None
-    assert calls == [2, 2, 1]
+        assert (None if not out else (out["k"].length, out["k"].error_estimate)) == want
