@@ -810,7 +810,13 @@ def _lbfgs_polish(domain: Domain, metric: Metric, par: _Parametrization, X: np.n
     bounds[k, 1] = np.minimum(par._hi, bounds[k, 1])
     res = minimize(fun, z, jac=True, method="L-BFGS-B", bounds=bounds,
                    options={"maxiter": 100, "ftol": 1e-12, "gtol": 1e-14, "maxcor": 30})
-    return unpack(par.clip(res.x))
+    Y = unpack(par.clip(res.x))
+    # the unknowns of X itself may map to another polyline (X projected onto the domain, off its normals): the
+    # polish then starts from that one and can end above X (4 of 280 polishes on 30 random interval scenes, by
+    # up to 1.2e-3 relative); X is a curve of the class too, so the shorter is kept
+    if float(segment_lengths(metric, comps, Y[:-1], Y[1:]).sum()) > f0:
+        return X
+    return Y
 
 
 def _optimize_level(domain: Domain, metric: Metric, X0: np.ndarray, modes: _Modes, shift, scale: float,
