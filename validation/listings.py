@@ -8,11 +8,11 @@ both vertex lists of every component reversed, and with every closed component s
 its vertex list (``np.roll`` of reference and deformed alike).  None of these changes ``J``.
 
 There is no reference value: the proof is the ``upper_bound`` (the exact length of the returned curves,
-so at least ``J``) of another listing.  A listing whose ``value - error_estimate`` lies above another's
-``upper_bound`` is too high by more than its estimate: ``SILENT`` without a ``ToleranceWarning``,
-``warned`` with one.  Writes ``listings.csv`` beside this file (one row per scene, setting and listing)
-and prints each scene's spread and verdicts.  ``--rev REV`` runs the ``direct`` of a git revision
-instead (a temporary worktree) and writes ``listings_REV.csv``.
+so at least ``J``) of another run of the scene, any listing at any of its settings.  A run whose ``value -
+error_estimate`` lies above another's ``upper_bound`` is too high by more than its estimate: ``SILENT``
+without a ``ToleranceWarning``, ``warned`` with one.  Writes ``listings.csv`` beside this file (one row
+per scene, setting and listing) and prints each scene's spread and verdicts.  ``--rev REV`` runs the
+``direct`` of a git revision instead (a temporary worktree) and writes ``listings_REV.csv``.
 """
 
 from __future__ import annotations
@@ -60,22 +60,26 @@ def main(out: str = "listings.csv") -> list[dict]:
         scenes = json.load(f)["scenes"]
     rows = []
     for sc in scenes:
-        for setting in sc["settings"]:
-            found = {label: solve(comps, setting) for label, comps in listings(sc["components"]).items()}
-            least_bound = min(r["upper_bound"] for r in found.values())
+        runs = {json.dumps(setting): {label: solve(comps, setting)
+                                      for label, comps in listings(sc["components"]).items()}
+                for setting in sc["settings"]}
+        # every run's upper_bound bounds J, whatever its setting
+        bounds = {(st, label): r["upper_bound"] for st, found in runs.items() for label, r in found.items()}
+        least_bound = min(bounds.values())
+        for st, found in runs.items():
             for label, r in found.items():
-                # how far value - estimate lies above the least upper bound of the other listings (relative)
-                others = min(s["upper_bound"] for other, s in found.items() if other != label)
+                # how far value - estimate lies above the least upper bound of the other runs (relative)
+                others = min(b for key, b in bounds.items() if key != (st, label))
                 excess = (r["value"] - r["estimate"] - others) / others
                 verdict = "ok" if excess <= 0 else ("warned" if r["warned"] else "SILENT")
-                rows.append(dict(scene=sc["name"], setting=json.dumps(setting), listing=label, value=r["value"],
+                rows.append(dict(scene=sc["name"], setting=st, listing=label, value=r["value"],
                                  estimate=r["estimate"], relative_estimate=r["estimate"] / r["value"],
                                  upper_bound=r["upper_bound"],
                                  above_least_bound=(r["value"] - least_bound) / least_bound,
                                  excess_over_others=excess, warned=r["warned"], seconds=r["seconds"], verdict=verdict))
             values = [r["value"] for r in found.values()]
             verdicts = {label: row["verdict"] for label, row in zip(found, rows[-len(found):])}
-            print(f"{sc['name']:18s} {json.dumps(setting):40s} values {min(values):.9f} .. {max(values):.9f} "
+            print(f"{sc['name']:18s} {st:40s} values {min(values):.9f} .. {max(values):.9f} "
                   f"(spread {(max(values) - min(values)) / min(values):.1e}), largest estimate "
                   f"{max(r['estimate'] / r['value'] for r in found.values()):.1e}; "
                   + ", ".join(f"{k} {v}" for k, v in verdicts.items()), flush=True)
