@@ -342,7 +342,7 @@ def rounded_up(x: float, digits: int = 2) -> str:
     text = f"{x:.{digits}g}"
     if float(text) < x:  # rounded down: one unit up in the last digit
         d = Decimal(text)
-        text = f"{float(d + Decimal(1).scaleb(d.adjusted() - digits + 1)):.{digits}g}"
+        text = f"{d + Decimal(1).scaleb(d.adjusted() - digits + 1):.{digits}g}"  # exact: not through a float
     return text
 
 

@@ -5,7 +5,7 @@ import subprocess
 import sys
 
 import pytest
-from hypothesis import given
+from hypothesis import example, given
 from hypothesis import strategies as st
 
 import direct
@@ -236,6 +236,7 @@ def test_the_printed_value_and_estimate_keep_the_contract(capsys, tol):
 
 
 @given(st.floats(min_value=0.0, max_value=1e300, allow_subnormal=True), st.integers(min_value=1, max_value=17))
+@example(5.960464477539063e-08, 16)  # the bumped decimal went through a float and rounded down again (CI, stop 28)
 def test_rounded_up_never_prints_less(x, digits):
     from direct.penalty import rounded_up
 
