@@ -834,13 +834,13 @@ def _leave_corners(domain: Domain, metric: Metric, keys: list, held: dict, job_o
                    atol: float) -> dict:
     """Refine the chosen curves held at corners of the cells again from beside them: ``{key: RefinedPath}``.
 
-    ``job_of(key)`` says how a curve's ends are held (its route is replaced
-    by the curve's points); see :func:`_corner_starts` and
+    ``job_of(key, points)`` is the curve as a job, its ends held as the
+    entry's are; see :func:`_corner_starts` and
     :func:`_beside_corners`.  Once: a second round on the curves the first
     replaced found nothing on the limaçon where the replacement stops at the
     next corner of a row (README, *Known limitations*).
     """
-    corner = {k: _corner_starts(domain, held[k], replace(job_of(k), route=held[k].points)) for k in keys}
+    corner = {k: _corner_starts(domain, held[k], job_of(k, held[k].points)) for k in keys}
     return _beside_corners(domain, metric, corner, held, tol, atol)
 
 
@@ -1125,7 +1125,7 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
             out = _more_starts(domain, metric, starts, cache, tol, atol, family=_CLOSED_FAMILY)
             # and every chosen curve pinned at a corner of the cells from beside it (see _corner_starts)
             out.update(_leave_corners(domain, metric, keys, {**cache, **out},
-                                      lambda k: GeodesicJob(np.empty((0, 2)), closed=k[0] == "closed"), tol, atol))
+                                      lambda k, X: GeodesicJob(X, closed=k[0] == "closed"), tol, atol))
             return out
 
         def ends(key):
@@ -1222,9 +1222,8 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
                 slid.update(near)
                 out.update(_slid_ends(domain, metric, near, {**cache, **out}, grid_costs, tol, atol))
             # a chosen curve pinned at a corner of the cells, again from beside it (see _corner_starts)
-            out.update(_leave_corners(domain, metric, keys, {**cache, **out}, lambda k: GeodesicJob(
-                np.empty((0, 2)), start_ground=k[0] if k[0] < ng else None, end_ground=k[1] if k[1] < ng else None),
-                tol, atol))
+            out.update(_leave_corners(domain, metric, keys, {**cache, **out}, lambda k, X: GeodesicJob(
+                X, start_ground=k[0] if k[0] < ng else None, end_ground=k[1] if k[1] < ng else None), tol, atol))
             if settings["route_check"]:
                 out.update(_second_routes(keys, {**cache, **out}))
             return out

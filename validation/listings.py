@@ -17,6 +17,7 @@ per scene, setting and listing) and prints each scene's spread and verdicts.  ``
 
 from __future__ import annotations
 
+import csv
 import json
 import os
 import time
@@ -83,8 +84,6 @@ def main(out: str = "listings.csv") -> list[dict]:
                   f"(spread {(max(values) - min(values)) / min(values):.1e}), largest estimate "
                   f"{max(r['estimate'] / r['value'] for r in found.values()):.1e}; "
                   + ", ".join(f"{k} {v}" for k, v in verdicts.items()), flush=True)
-    import csv
-
     with open(os.path.join(HERE, out), "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=list(rows[0]))
         w.writeheader()
