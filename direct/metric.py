@@ -70,6 +70,11 @@ class Metric(ABC):
     #: the lengths do not depend on the parametrization of M (Prop. 18): :func:`direct.penalty.penalty` may then
     #: compute an unevenly stretched component in its deformed arclength (only a non-degenerate metric)
     reparametrization_invariant: bool = False
+    #: lengths do not change under the swap ``(x1, x2) -> (x2, x1)`` of ``M x M``, i.e. ``norm(a, b, (d1, d2)) ==
+    #: norm(b, a, (d2, d1))`` (``rho`` depends on ``|r|^2`` only): a circle's curves with itself then come in mirror
+    #: pairs of equal length (:func:`direct.penalty.penalty` compares them).  A subclass that changes :meth:`norm`
+    #: must set it again.
+    swap_symmetric: bool = False
 
     @abstractmethod
     def weight(self, r2: np.ndarray) -> np.ndarray:
@@ -165,6 +170,7 @@ class GFamily(Metric):
     name = "G"
     deformed_grid = True  # isotropic in the deformed arclengths
     reparametrization_invariant = True  # h(|phi(x1) - phi(x2)|^2) |(phi'(x1) dx1, phi'(x2) dx2)|
+    swap_symmetric = True
 
     def weight(self, r2):  # noqa: D102
         return np.sqrt(self.h(r2))
@@ -251,6 +257,7 @@ class g(Metric):  # noqa: N801  (the paper's name)
     p: float = 2.0
 
     name = "g"
+    swap_symmetric = True
 
     def __post_init__(self):
         _checked_power(self.p)
@@ -307,6 +314,7 @@ class Euclid(Metric):
     """
 
     name = "euclid"
+    swap_symmetric = True
     degree = 0
     order = 0.0
     degenerate = True

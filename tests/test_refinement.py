@@ -106,6 +106,31 @@ def test_a_vertex_that_lands_on_its_neighbour_is_merged():
     assert len(W) == 5 and len(wmodes) == 5
 
 
+def test_a_run_of_vertices_collapsed_on_a_refraction_vertex_is_merged():
+    """The limaçon at 32 vertices: four free vertices 1.6e-8 of a cell from a refraction vertex (segments 1.1e-6 of
+    the mean, above the single-segment threshold of 1e-6) held a curve 3.7e-6 (relative) above the geodesic of its
+    own cells, with an estimate of 3.4e-8. The whole run merges into the refraction vertex; the geometric grading
+    next to an end that slides on the boundary (segments down to 1e-5 of the mean here) stays."""
+    from direct.refinement import _merge_collapsed
+
+    line = (np.array([0.5, 0.0]), np.array([0.0, 1.0]), -np.inf, np.inf)
+    slide = (np.array([0.0, 0.0]), np.array([0.0, 1.0]), -np.inf, np.inf)
+    tiny = 2e-7 * np.arange(1, 5)  # segments 4e-6 of the mean
+    X = np.vstack([[[0.0, 0.0], [0.25, 0.15]], np.column_stack([0.5 - tiny[::-1], 0.3 - tiny[::-1]]),
+                   [[0.5, 0.3], [0.75, 0.45], [1.0, 0.6]]])
+    modes = _modes(["fixed", "free", "free", "free", "free", "free", line, "free", "fixed"])
+    Y, ymodes = _merge_collapsed(X, modes)
+    np.testing.assert_array_equal(Y, X[[0, 1, 6, 7, 8]])
+    assert list(ymodes.kind) == list(modes.kind[[0, 1, 6, 7, 8]])
+    # a graded end: segments halving towards the end that slides (1/2, 1/4, ... 1/2^20 of the first)
+    frac = np.concatenate([[1.0], 0.5 ** np.arange(1, 21), [0.0]])
+    G = np.column_stack([frac, 0.3 * frac])
+    seg = np.linalg.norm(np.diff(G, axis=0), axis=1)
+    assert (seg < 1e-4 * seg.mean()).sum() == 4 and seg.min() > 1e-6 * seg.mean()
+    Z, zmodes = _merge_collapsed(G, _modes(["fixed"] + ["free"] * 20 + [slide]))
+    np.testing.assert_array_equal(Z, G)
+
+
 def test_a_refraction_vertex_on_a_crease_does_not_pin_the_curve():
     """Seed 130 of the multistart study: a geodesic meets a vertex line at a shallow angle (a crease of the
     metric's norm); its refraction vertex slid onto its free neighbour and pinned the curve, so that at 128
@@ -189,3 +214,4 @@ def test_the_polish_never_returns_a_longer_curve(monkeypatch):
     direct.penalty(random_crossing_scene(13, n_comp=2, n_vert=7, min_crossings=1, max_crossings=10))
     assert len(seen) > 0
     assert all(after <= before for before, after in seen)
+
