@@ -1158,6 +1158,7 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
     # estimate of 1.8e-5, and twice as slow), so domains with a circle keep the uniform grid
     coarsen = settings["coarsen"] if domain.kind in ("rect", "triangle") else 1
     slid: set = set()  # entries refined again with their end slid along the diagonal (_slid_ends)
+    shifted: set = set()  # curves between the grounds refined again from their family's shifts (finish)
     graph = build_graph(domain, metric, settings["resolution"], settings["neighbours"], coarsen=coarsen)
     ng = domain.n_grounds
     pos = np.flatnonzero(domain.signs > 0)
@@ -1231,7 +1232,6 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
         arcs = [(u, v) for u in range(nt) for v in range(nt) if u != v and np.isfinite(T[u, v])]
         grid_costs = {a: float(T[a]) for a in arcs}
         mirror = _mirror_of(domain, metric) if domain.kind == "annulus" else None
-        shifted: set = set()  # curves between the grounds refined from their family's shifts (finish)
 
         if ng == 1:  # intervals: the paper's assignment program (34)
 
@@ -1400,6 +1400,7 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
             atol = loose_atol
             stale = set(loose)
             slid.difference_update(stale)  # refined afresh from the grid: slid again
+            shifted.difference_update(stale)  # and shifted again (an adversarial review)
             value, chosen, cache = _settle(grid_costs, solve, refine_keys, bias, finish,
                                            cache={k: v for k, v in cache.items() if k not in stale},
                                            finished={k for k, _ in chosen if k not in stale}, complete=complete)
