@@ -1034,16 +1034,17 @@ def _mirror_of(domain: Domain, metric: Metric):
     :attr:`direct.metric.Metric.swap_symmetric`.  None when the metric does
     not say so, or when a point has no mirror among the points.
     """
-    if not getattr(metric, "swap_symmetric", False):
+    if not metric.swap_symmetric:
         return None
     ng = domain.n_grounds
-    ids = np.asarray(domain.crossing_ids)
+    points: dict = {}  # the points of each crossing
+    for k, c in enumerate(domain.crossing_ids):
+        points.setdefault(int(c), []).append(ng + k)
+    if any(len(p) != 2 for p in points.values()):
+        return None
     node = {0: 1, 1: 0}
-    for k, c in enumerate(ids):
-        other = np.flatnonzero((ids == c) & (np.arange(len(ids)) != k))
-        if len(other) != 1:
-            return None
-        node[ng + k] = ng + int(other[0])
+    node.update({u: v for u, v in points.values()})
+    node.update({v: u for u, v in points.values()})
     return node, float(domain.lengths[0])
 
 
