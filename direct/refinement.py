@@ -624,17 +624,18 @@ def _merge_collapsed(X: np.ndarray, modes: _Modes, rel: float = _COLLAPSED) -> t
     cross, each doubling splits them again, and the levels then converge, at
     the expected rate, to a pinned curve: the error estimate misses it.
     Measured on the limaçon ``r = 0.7 + cos t`` at 32 vertices: four free
-    vertices 1.6e-8 of a cell from a line vertex (segments 1.1e-6 of the mean,
-    just above the threshold of ``1e-6`` this had then) held a curve 3.7e-6
-    relative above the geodesic of its own sequence of cells, with an
-    estimate of 3.4e-8, at ``tol=1e-5``.
+    vertices 1.6e-8 to 6.3e-8 of a cell from a line vertex (segments of about
+    2e-8 of a cell; 2e-6 of the mean in a rerun of the same kind, above the
+    threshold of ``1e-6`` this had then) held a curve 3.6e-6 relative above
+    the geodesic of its own sequence of cells, with an estimate of 3.4e-8, at
+    ``tol=1e-5``.
 
     Each run of two or more consecutive segments shorter than ``rel`` times
     the mean segment is merged into one vertex: its vertices on lines (or
     fixed) stay, its free vertices go (one stays where the run has no other),
     and :func:`_insert_breaks` puts back a refraction vertex where the curve
     still crosses a line.  A single short segment merges only below ``1e-6``
-    of the mean, as before: merging those from ``1e-4`` made seed 3 of
+    of the mean (the old threshold): merging those from ``1e-4`` made seed 3 of
     ``test_local_refinement_and_the_uniform_grid_agree_within_their_estimates``
     2.5 times slower (81 s against 32 s at ``tol=1e-5``) and 3e-6 higher, and
     let two curves of the star polygon of 9 vertices creep over 1,000

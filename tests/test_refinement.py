@@ -107,10 +107,10 @@ def test_a_vertex_that_lands_on_its_neighbour_is_merged():
 
 
 def test_a_run_of_vertices_collapsed_on_a_refraction_vertex_is_merged():
-    """The limaçon at 32 vertices: four free vertices 1.6e-8 of a cell from a refraction vertex (segments 1.1e-6 of
-    the mean, above the single-segment threshold of 1e-6) held a curve 3.7e-6 (relative) above the geodesic of its
-    own cells, with an estimate of 3.4e-8. The whole run merges into the refraction vertex; the geometric grading
-    next to an end that slides on the boundary (segments down to 1e-5 of the mean here) stays."""
+    """The limaçon at 32 vertices: four free vertices 1.6e-8 to 6.3e-8 of a cell from a refraction vertex (segments
+    about 2e-6 of the mean, above the single-segment threshold of 1e-6) held a curve 3.6e-6 (relative) above the
+    geodesic of its own cells, with an estimate of 3.4e-8. The whole run merges into the refraction vertex; the
+    geometric grading next to an end that slides on the boundary (segments down to 1e-5 of the mean here) stays."""
     from direct.refinement import _merge_collapsed
 
     line = (np.array([0.5, 0.0]), np.array([0.0, 1.0]), -np.inf, np.inf)
