@@ -411,3 +411,21 @@ def test_valley_rays_bend_on_vertex_lines_and_weigh_their_exact_length():
     path = graph.node_path([node, g])
     assert np.allclose(path[1:-1], pts) and np.allclose(path[-1], graph.exit_points[g, node])
     assert np.allclose(graph.node_path([g, node]), path[::-1])
+
+
+@pytest.mark.parametrize("neighbours", [8, 16, 32])
+def test_annulus_grid_moves_are_the_stencil_of_the_parameters(neighbours):
+    """The grid of a circle with itself is uniform in ``(s, v)``, ``(x1, x2) = s (1, 1) + v (0, 1)``: its edges
+    between grid nodes must be the stencil's moves in the parameters ``(x1, x2)``, not in ``(s, v)``. In ``(s, v)``
+    the 16 moves left a gap of 45 degrees in the parameters (a bias of up to 8.2 %): a figure eight's grid picked a
+    local geodesic 6.7 % longer than the shortest (``test_figure_eight_crossing_on_vertices_in_every_listing``)."""
+    sc = direct.scenes.get("fig10")
+    (dom,) = [d for d in domains(sc, direct.find_crossings(sc)) if d.kind == "annulus"]
+    g = build_graph(dom, get_metric("G"), resolution=24, neighbours=neighbours)
+    grid = (g.rows >= dom.n_grounds) & (g.cols >= dom.n_grounds)
+    grid &= (g.rows < len(g.coords) - len(dom.points)) & (g.cols < len(g.coords) - len(dom.points))
+    local = g.coords[g.cols[grid]] - g.coords[g.rows[grid]] + g.winds[grid] * np.array(dom.local_lengths)
+    moves = np.rint((local @ dom.basis.T) / g.h).astype(int)  # in the parameters, in cells
+    np.testing.assert_allclose(moves * g.h, local @ dom.basis.T, atol=1e-9)
+    half = stencil(neighbours)
+    assert {tuple(m) for m in moves} | {tuple(-m) for m in moves} == {tuple(m) for m in np.vstack([half, -half])}

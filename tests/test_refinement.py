@@ -215,3 +215,30 @@ def test_the_polish_never_returns_a_longer_curve(monkeypatch):
     assert len(seen) > 0
     assert all(after <= before for before, after in seen)
 
+
+
+def test_a_curve_from_the_boundary_starts_where_it_last_leaves_it():
+    """A curve from the diagonal to a crossing point whose first vertices lie on the diagonal (where ``G`` vanishes,
+    so moving them changes nothing) starts at the last of them, as a curve bound for the boundary ends at the
+    first: both ends were cut only on curves that end on the boundary, and a figure eight's curves from the
+    diagonal kept a run of dozens of vertices there that pinned their start where the coarse pass had left it."""
+    from direct.refinement import SLIDE, _truncate_ends
+
+    t = 2 * np.pi * np.arange(24) / 24
+    sc = direct.Scene((direct.Component(np.column_stack([np.cos(t), np.sin(t)]),
+                                        np.column_stack([np.sin(t), np.sin(t) * np.cos(t)]), closed=True, name="L"),))
+    (dom,) = domains(sc, find_crossings(sc))
+    p = dom.points[0]
+    on = np.array([[a, a] for a in (1.0, 1.2, 1.4, 1.6)])  # on the ground x2 = x1 (ground 0)
+    off = on[-1] + np.linspace(0, 1, 5)[1:, None] * (p - on[-1])
+    X = np.vstack([on, off])
+    modes = _modes(["free"] * (len(X) - 1) + ["fixed"])
+    Y, m = _truncate_ends(dom, X, modes, 0, None)
+    np.testing.assert_array_equal(Y, X[3:])
+    assert m.kind[0] == SLIDE and m.kind[-1] == modes.kind[-1] and len(m) == len(Y)
+    np.testing.assert_allclose(m.base[0] + (Y[0] - m.base[0]) @ m.e[0] * m.e[0], Y[0], atol=1e-12)  # on its line
+    Z, mz = _truncate_ends(dom, X[::-1].copy(), modes[::-1], None, 0)  # the same curve run the other way
+    np.testing.assert_array_equal(Z, Y[::-1])
+    assert mz.kind[-1] == SLIDE
+    W, mw = _truncate_ends(dom, off, modes[3:], 0, None)  # no vertex on the ground after the first: unchanged
+    np.testing.assert_array_equal(W, off)
