@@ -399,6 +399,14 @@ def _in_deformed_arclength(scene: Scene, crossings: list[Crossing]) -> tuple[Sce
     (interval seed 138 of ``validation/default_tol.py``, speeds within 15:
     its grids then route a curve to the longer of two local geodesics across
     a crease, 7.7e-4 above, with an estimate of 8e-6 at ``tol=1e-5``).  A
+    closed component goes into its deformed arclength whenever its speeds
+    differ at all (``_CLOSED_SPREAD``): the grid of the annulus (the
+    component with itself) is uniform in the reference arclength, whose
+    unequal speeds squeeze its stencil's directions (a limaçon at 24
+    vertices, speeds 1 and 12 on its two halves: 3.1e-3 above ``J`` with
+    an estimate of 8.1e-7; a figure eight at 20, speeds alternating 1 and
+    12, reversed: 4.8e-4 above, estimate 4.7e-5; an adversarial review at
+    stop 30, ``test_a_closed_curve_in_uneven_reference_speeds``).  A
     segment shorter than ``_COLLAPSED`` times its component's mean deformed
     segment spans that much parameter; a component collapsed to a point
     keeps its reference arclength.
@@ -408,7 +416,8 @@ def _in_deformed_arclength(scene: Scene, crossings: list[Crossing]) -> tuple[Sce
         d = np.linalg.norm(np.diff(c.deformed_ring, axis=0), axis=1)
         speed = d / c.segment_lengths
         moving = speed[speed > 0]
-        if moving.size and moving.max() > _SPREAD * moving.min():
+        spread = _CLOSED_SPREAD if c.closed else _SPREAD
+        if moving.size and moving.max() > spread * moving.min():
             c = c.reparametrized(np.maximum(d, _COLLAPSED * float(d.mean())))
         comps.append(c)
     if not any(hasattr(c, "source") for c in comps):
@@ -424,6 +433,8 @@ def _in_deformed_arclength(scene: Scene, crossings: list[Crossing]) -> tuple[Sce
 
 #: a component whose segments' speeds |phi'| span more than this is computed in its deformed arclength (for G)
 _SPREAD = 16.0
+#: the same for a closed component: any spread beyond rounding (its annulus grid, see _in_deformed_arclength)
+_CLOSED_SPREAD = 1.0 + 1e-9
 #: the least parameter width of a segment in the deformed arclength, relative to its component's mean segment
 _COLLAPSED = 1e-3
 

@@ -351,9 +351,9 @@ def test_hairpin_short_curves_are_refined_to_the_refined_values_tolerance():
     a valley much narrower than a grid cell and the grid's value is 33 times J at 128 cells. The absolute
     tolerance taken from it let the curves stop short of their relative tolerance (1.1e-3 off, estimate 1.6e-3, with
     a warning at the default tol). Refined again with the refined value's, a run must reach its tolerance,
-    without a warning, within its estimate of a tight run. Since the annulus grid has the 16 moves of the
-    parameters (stop 30) the grid's value is 16 times J at 128 cells, close enough to need no second refinement;
-    at 96 cells it is 23 times J, and the second refinement runs."""
+    without a warning, within its estimate of a tight run. Since stop 30 (the annulus grid with the 16 moves of
+    the parameters, the hairpin in its deformed arclength) the grid's value is 6 times J at 128 cells, close
+    enough to need no second refinement; at 96 cells it is 61 times J, and the second refinement runs."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", direct.ToleranceWarning)  # 512 segments reached: an estimate of 2e-5
         ref = direct.penalty("hairpin", tol=1e-6)
@@ -361,7 +361,7 @@ def test_hairpin_short_curves_are_refined_to_the_refined_values_tolerance():
         with warnings.catch_warnings():
             warnings.simplefilter("error", direct.ToleranceWarning)
             res = direct.penalty("hairpin", resolution=resolution)
-        assert res.grid_value > 10 * res.value
+        assert res.grid_value > (10 if again else 1) * res.value
         assert res.settings.get("refined_again", 0) == again
         assert res.error_estimate <= 1e-3 * res.value
         assert abs(res.value - ref.value) <= res.error_estimate
@@ -941,10 +941,11 @@ def _figure_eight_on_vertices(roll: int = 0, reverse: bool = False) -> direct.Sc
 def test_figure_eight_crossing_on_vertices_in_every_listing():
     """Found by an adversarial review (stop 29): the figure eight above gave 1.797252 as listed (estimate 6.8e-6,
     no warning), 1.701223 started from vertex 5 and 1.684693 reversed: the first 7 % above J. Its curves from the
-    crossing point to the diagonal run between the directions (0, 1) and (-1, 1) of the parameters, where the annulus
-    grid, its 16 moves taken in (s, v), had a gap of 45 degrees: every route there cost 8 % more, and the grid chose
-    the straight curve along (-1, 1), a local geodesic 6.7 % longer. With the 16 moves of the parameters every
-    listing must find the same curves: each within its estimate of the least upper bound of all, with no warning."""
+    crossing point to the diagonal run on either side of the direction (-1, 1) of the parameters, where the
+    annulus grid, its 16 moves taken in (s, v), had gaps of 45 degrees: every route there cost up to 8 % more, and
+    the grid chose the straight curve along (-1, 1), a local geodesic 6.7 % longer. With the 16 moves of the
+    parameters every listing must find the same curves: each within its estimate of the least upper bound of all,
+    with no warning."""
     runs = []
     for kw in ({}, {"roll": 5}, {"reverse": True}, {"roll": 3}):
         with warnings.catch_warnings():
@@ -974,5 +975,39 @@ def test_a_random_closed_polygon_agrees_with_the_finer_stencil():
         warnings.simplefilter("error", direct.ToleranceWarning)
         a, b = (direct.penalty(sc, neighbours=k) for k in (16, 32))
     assert len(a.crossings) == 3
+    assert a.value - a.error_estimate <= b.upper_bound
+    assert b.value - b.error_estimate <= a.upper_bound
+
+
+def _unevenly_referenced(d: np.ndarray, speeds) -> np.ndarray:
+    """A unit circle polygon as the reference of the closed polyline ``d``, its segments' reference lengths
+    proportional to their deformed lengths over ``speeds`` (the speeds ``|phi'|`` of the segments, up to a factor)."""
+    w = np.linalg.norm(np.roll(d, -1, 0) - d, axis=1) / np.asarray(speeds, dtype=float)
+    th = np.r_[0.0, np.cumsum(w)[:-1]] / w.sum() * 2 * np.pi
+    return np.column_stack([np.cos(th), np.sin(th)])
+
+
+@pytest.mark.parametrize("shape", ["limacon", "eight"])
+def test_a_closed_curve_in_uneven_reference_speeds(shape):
+    """``J^G`` ignores the reference (Prop. 18), but the annulus grid is uniform in the reference arclength, where
+    unequal speeds squeeze the stencil's directions. Found by an adversarial review (stop 30): a limaçon at 24
+    vertices whose reference gives its two halves speeds 1 and 12 came out 3.1e-3 above the evenly referenced one
+    with an estimate of 8.1e-7 (right before the annulus grid took the moves of the parameters, by luck); a figure
+    eight at 20 vertices, speeds alternating 1 and 12, listed reversed, 4.8e-4 above with 4.7e-5 (before too).
+    Closed components now go into their deformed arclength whenever their speeds differ: each run within its
+    estimate of the other's upper bound."""
+    n = {"limacon": 24, "eight": 20}[shape]
+    t = 2 * np.pi * np.arange(n) / n + {"limacon": 0.1, "eight": 0.07}[shape]
+    if shape == "limacon":
+        r = 0.7 + np.cos(t)
+        d = np.column_stack([r * np.cos(t), r * np.sin(t)])
+        uneven = _unevenly_referenced(d, np.r_[np.ones(12), 12 * np.ones(12)])
+    else:
+        d = np.column_stack([np.sin(t), np.sin(t) * np.cos(t)])
+        uneven = _unevenly_referenced(d, np.resize([1.0, 12.0], n))[::-1].copy()
+        d = d[::-1].copy()
+    even = np.column_stack([np.cos(2 * np.pi * np.arange(n) / n), np.sin(2 * np.pi * np.arange(n) / n)])
+    a, b = (direct.penalty(direct.Scene((direct.Component(ref, d, closed=True, name="c"),))) for ref in (uneven, even))
+    assert a.settings.get("deformed_arclength") == b.settings.get("deformed_arclength") == ["c"]
     assert a.value - a.error_estimate <= b.upper_bound
     assert b.value - b.error_estimate <= a.upper_bound

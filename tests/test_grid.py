@@ -417,7 +417,7 @@ def test_valley_rays_bend_on_vertex_lines_and_weigh_their_exact_length():
 def test_annulus_grid_moves_are_the_stencil_of_the_parameters(neighbours):
     """The grid of a circle with itself is uniform in ``(s, v)``, ``(x1, x2) = s (1, 1) + v (0, 1)``: its edges
     between grid nodes must be the stencil's moves in the parameters ``(x1, x2)``, not in ``(s, v)``. In ``(s, v)``
-    the 16 moves left a gap of 45 degrees in the parameters (a bias of up to 8.2 %): a figure eight's grid picked a
+    the 16 moves left gaps of 45 degrees in the parameters (a bias of up to 8.2 %): a figure eight's grid picked a
     local geodesic 6.7 % longer than the shortest (``test_figure_eight_crossing_on_vertices_in_every_listing``)."""
     sc = direct.scenes.get("fig10")
     (dom,) = [d for d in domains(sc, direct.find_crossings(sc)) if d.kind == "annulus"]
