@@ -427,7 +427,9 @@ def _grid_coordinate(domain: Domain, metric: Metric, axis: int) -> tuple[np.ndar
     the shortest, the value 5 % too high, at 64 to 144 cells; in ``sigma``
     only at 128, and with 32 neighbours at none of 64 to 256).  ``g``
     (Euclidean in reference arclength) keeps the uniform grid, and so does
-    the annulus, whose local axes mix the two parameters.
+    the annulus, whose local axes mix the two parameters: for ``G`` its
+    component is computed in its deformed arclength instead, whenever its
+    speeds differ (``direct.penalty._in_deformed_arclength``).
     """
     if not metric.deformed_grid or domain.kind == "annulus":
         return None
