@@ -261,7 +261,8 @@ class Penalty:
         absolute tolerance taken from the grid's value was too loose (a
         grid that overestimates ``J`` many times over, in a narrow valley);
         ``deformed_arclength``, the names of the components computed in
-        their deformed arclength (``G``, speeds spanning more than 16).
+        their deformed arclength (``G``: an interval whose speeds span more
+        than 16, a closed component whose speeds differ at all).
     seconds : float
         Wall time of the computation.
     """

@@ -197,9 +197,10 @@ class Component:
 
         ``J^G`` does not depend on the parametrization (Prop. 18), and its
         length element is isotropic in the deformed arclength:
-        :func:`direct.penalty.penalty` computes a component whose speeds
-        ``|phi'|`` span more than 16 in its deformed arclength and maps the
-        curves back with :meth:`reference_arclength`.
+        :func:`direct.penalty.penalty` computes an interval whose speeds
+        ``|phi'|`` span more than 16, and a closed component whose speeds
+        differ at all, in its deformed arclength and maps the curves back
+        with :meth:`reference_arclength`.
 
         Parameters
         ----------
