@@ -135,10 +135,9 @@ _CLOSED_FAMILY = 5e-4
 _ON_CORNER = 0.01
 #: corner starts that settle within this (relative) of the shortest curve widen its estimate by their spread
 _CORNER_FAMILY = 1e-4
-#: the starts beside a corner move the corner vertex across the curve by this fraction of the curve's length (at
-#: least 0.3 of its longer segment), and the vertices within ``_CORNER_WIDTH`` of the curve's length a tent's share
-_CORNER_BUMP = 0.01
-_CORNER_WIDTH = 0.1
+#: the starts beside a corner move the corner vertex across the curve by 0.3 of its longer segment, and the
+#: vertices within this many of those segments (along the curve) a tent's share of that
+_CORNER_REACH = 3.0
 
 #: crossings whose tangents make an angle with sine below this are grazing: their domain always gets a second pass
 _GRAZING = 0.1
@@ -940,14 +939,16 @@ def _corner_starts(domain: Domain, path: RefinedPath, job: GeodesicJob) -> list[
     estimate of 6e-5 (an adversarial review; listed from another vertex, the
     grid's route missed the corner).  Each start bumps the curve across
     itself around every corner vertex, all to the left or all to the right:
-    the corner vertex by ``_CORNER_BUMP`` (1 %) of the curve's length (at
-    least 0.3 of its longer segment), the vertices within ``_CORNER_WIDTH``
-    (a tenth) of the curve's length a tent's share of that.  Moving the
-    corner vertex alone, by 0.3 of its segment (7e-3), left that 13-gon
-    listed from vertex 10 in the corner on another machine (its curve had
-    two vertices on the corner, its geodesic passed 2e-2 beside it; Newton
-    pulled the lone vertex back), 1.6e-4 above ``J`` with an estimate of
-    8.8e-5, no warning; the bump reaches the geodesic in both listings.
+    the corner vertex by 0.3 of its longer segment, the vertices within
+    ``_CORNER_REACH`` (3) such segments along the curve a tent's share of
+    that.  Moving the corner vertex alone left that 13-gon listed from
+    vertex 10 in the corner on another machine (other roundings; its curve
+    had two vertices on the corner, its geodesic passed 2e-2 beside it, and
+    Newton pulled the lone vertices back): 1.6e-4 above ``J`` with an
+    estimate of 8.8e-5, no warning.  A bump of 1 % of the curve's length
+    over a tenth of it also fixed that, but made the corner starts of seed
+    3 of the random interval scenes take 40 times as long at ``tol=1e-5``,
+    and ``fig13`` with ``g`` 30 times (its estimate 80 times wider).
     On 39 random interval scenes at ``tol=1e-4`` 17 of 538
     curves had a vertex within 1e-9 of a corner (a first, narrower test),
     and such starts shortened them by at most 5.6e-6 relative, within their
@@ -964,9 +965,10 @@ def _corner_starts(domain: Domain, path: RefinedPath, job: GeodesicJob) -> list[
     normal = np.stack([-chord[:, 1], chord[:, 0]], axis=1) / np.linalg.norm(chord, axis=1)[:, None]
     seg = np.linalg.norm(np.diff(X, axis=0), axis=1)
     arc = np.concatenate([[0.0], np.cumsum(seg)])
-    step = np.maximum(0.3 * np.maximum(np.linalg.norm(X[ks] - prev, axis=1), seg[ks]), _CORNER_BUMP * arc[-1])
+    longer = np.maximum(np.linalg.norm(X[ks] - prev, axis=1), seg[ks])
+    step = 0.3 * longer
     # a bump of the curve around each corner, a tent along its arclength, rather than the corner vertex alone
-    tent = np.clip(1.0 - np.abs(arc[:, None] - arc[ks][None, :]) / (_CORNER_WIDTH * arc[-1]), 0.0, None)
+    tent = np.clip(1.0 - np.abs(arc[:, None] - arc[ks][None, :]) / (_CORNER_REACH * longer)[None, :], 0.0, None)
     if not job.closed:
         tent[[0, -1]] = 0.0  # the ends stay (held by their conditions)
     else:

@@ -798,8 +798,8 @@ def test_corner_vertices_and_the_starts_that_leave_them():
     """``_corner_vertices`` finds the vertices of a polyline on a corner of the cells (within 1e-2 of the longer
     segment from a vertex line of both components, a curve along one of the lines too), not those on one line only;
     ``_corner_starts`` bumps the curve around them across itself, to the left and to the right (the corner vertex
-    by 1 % of the curve's length, its neighbours within a tenth of that length less, in a tent), and leaves the
-    vertices farther along and the ends as they were."""
+    by 0.3 of its longer segment, the vertices within three such segments along the curve less, in a tent), and
+    leaves the vertices farther along and the ends as they were."""
     import sys
 
     from direct.crossings import find_crossings
@@ -819,8 +819,10 @@ def test_corner_vertices_and_the_starts_that_leave_them():
     path = RefinedPath(X, 1.0, 1.0, 0.0, len(X) - 1)
     left, right = P._corner_starts(dom, path, GeodesicJob(X, end_ground=1))
     arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(X, axis=0), axis=1))])
-    near = np.abs(arc - arc[2]) < 0.1 * arc[-1]  # the tent's reach
+    longer = max(np.linalg.norm(X[2] - X[1]), np.linalg.norm(X[3] - X[2]))
+    near = np.abs(arc - arc[2]) < 3 * longer  # the tent's reach
     near[[0, -1]] = False
+    assert near[[1, 3]].all()  # the neighbours move too
     for start, side in ((left, 1.0), (right, -1.0)):
         assert start.end_ground == 1 and not start.closed
         np.testing.assert_array_equal(start.route[~near], X[~near])
@@ -829,8 +831,8 @@ def test_corner_vertices_and_the_starts_that_leave_them():
         chord = X[3] - X[1]
         assert abs(move @ chord) < 1e-12  # across the curve
         assert np.sign(chord[0] * move[1] - chord[1] * move[0]) == side
-        longer = max(np.linalg.norm(X[2] - X[1]), np.linalg.norm(X[3] - X[2]))
-        assert np.linalg.norm(move) >= max(0.3 * longer, 0.01 * arc[-1]) - 1e-12
+        assert abs(np.linalg.norm(move) - 0.3 * longer) < 1e-12
+        assert 0 < np.linalg.norm(moves[1]) < np.linalg.norm(move)
         assert np.all(np.linalg.norm(moves, axis=1) <= np.linalg.norm(move) + 1e-12)  # a tent: the corner moves most
     assert P._corner_starts(dom, RefinedPath(X + [0.0, 0.05], 1.0, 1.0, 0.0, 5), GeodesicJob(X)) == []
 
