@@ -137,13 +137,13 @@ _ON_CORNER = 0.01
 _CORNER_FAMILY = 1e-4
 #: the starts beside a corner move the corner vertex across the curve by 0.3 of its longer segment, and the
 #: vertices within this many of those segments (along the curve) a tent's share of that
-_CORNER_REACH = 3.0
+_CORNER_REACH = 1.5
 #: a refined open curve within this fraction of its chord from the chord is straight (see _bent_starts) ...
 _STRAIGHT = 1e-9
 #: a chosen curve from a crossing point to the boundary whose chord is at most this many fine cells gets straight starts
 _SHORT = 4.0
-#: ... and is refined again from two starts bent across the chord by this fraction of its length
-_BEND = 0.1
+#: ... and is refined again from starts bent across the chord by these fractions of its length, to either side
+_BEND = (0.01, 0.1)
 
 #: crossings whose tangents make an angle with sine below this are grazing: their domain always gets a second pass
 _GRAZING = 0.1
@@ -940,10 +940,14 @@ def _bent_starts(path: RefinedPath, job: GeodesicJob) -> list[GeodesicJob]:
     the stencil's bias more.  An adversarial review (stop 31) found
     limaçons ``a + cos t`` sampled from ``t = 0`` whose straight curves were
     up to 18 % above ``J`` at ``tol=1e-5`` with estimates of 1e-14 relative,
-    no warning (the shortest curves bulge by 7 % of their chord).  Each start
-    bends the curve across its chord by ``_BEND`` (a tenth) of the chord's
-    length at its middle, in a parabola; the ends stay.  Closed curves are
-    left out.
+    no warning (the shortest curves bulge by 7 % of their chord).  Four
+    starts bend the curve across its chord, to either side, by ``_BEND``
+    (1 % and 10 %) of the chord's length at its middle, in a parabola; the
+    ends stay.  The limaçon ``a = 0.3`` at 16 vertices needs the small bend
+    (its shortest curves bulge by 0.9 %: from a bend of 3 % or 10 % the
+    refinement came back to the straight curve, 1.1e-5 above, with an
+    estimate of 5e-13), ``a = 0.8`` at 12 vertices settles 2e-5 lower from
+    the large one.  Closed curves are left out.
     """
     X = np.asarray(path.points, dtype=float)
     if job.closed or len(X) < 3:
@@ -957,8 +961,8 @@ def _bent_starts(path: RefinedPath, job: GeodesicJob) -> list[GeodesicJob]:
     if np.abs(off).max() > _STRAIGHT * length:
         return []
     s = np.clip(((X - X[0]) @ chord) / length**2, 0.0, 1.0)
-    bend = (_BEND * length * 4.0 * s * (1.0 - s))[:, None] * normal
-    return [replace(job, route=X + side * bend, coarse=False) for side in (1.0, -1.0)]
+    bend = (length * 4.0 * s * (1.0 - s))[:, None] * normal
+    return [replace(job, route=X + side * b * bend, coarse=False) for b in _BEND for side in (1.0, -1.0)]
 
 
 def _corner_vertices(domain: Domain, X: np.ndarray, closed: bool) -> np.ndarray:
@@ -1021,7 +1025,7 @@ def _corner_starts(domain: Domain, path: RefinedPath, job: GeodesicJob) -> list[
     grid's route missed the corner).  Each start bumps the curve across
     itself around every corner vertex, all to the left or all to the right:
     the corner vertex by 0.3 of its longer segment, the vertices within
-    ``_CORNER_REACH`` (3) such segments along the curve a tent's share of
+    ``_CORNER_REACH`` (1.5) such segments along the curve a tent's share of
     that.  Moving the corner vertex alone left that 13-gon listed from
     vertex 10 in the corner on another machine (other roundings; its curve
     had two vertices on the corner, its geodesic passed 2e-2 beside it, and
@@ -1030,7 +1034,10 @@ def _corner_starts(domain: Domain, path: RefinedPath, job: GeodesicJob) -> list[
     over a tenth of it also fixed that, but made seed 3 of the random
     interval scenes take 924 s at ``tol=1e-5`` under cProfile (23 s before,
     without it) and ``fig13`` with ``g`` 293 s instead of 10 s (its
-    estimate 80 times wider).
+    estimate 80 times wider).  A reach of 3 segments also did, but seed 3
+    of ``test_local_refinement_and_the_uniform_grid_agree_within_their_
+    estimates`` took 69 and 42 s (two grids) against 59 and 15 s with 1.5,
+    one run each beside another process.
     On 39 random interval scenes at ``tol=1e-4`` 17 of 538
     curves had a vertex within 1e-9 of a corner (a first, narrower test),
     and such starts shortened them by at most 5.6e-6 relative, within their
