@@ -1053,12 +1053,12 @@ def test_bent_and_straight_starts():
 
 
 @pytest.mark.parametrize(("a", "n", "bound"), [(0.8, 12, 0.00076838760), (0.3, 16, 0.42840042450)])
-def test_a_symmetric_limacon_leaves_its_corners(a, n, bound):
+def test_a_symmetric_limacon_leaves_its_straight_curves(a, n, bound):
     """The limaçons ``r = a + cos t`` sampled evenly at ``n`` vertices (``validation/symmetric.py``): on a242e98 (on
     an AMD EPYC) a = 0.8 at 12 vertices gave 0.00076868540 with an estimate of 4e-17 and a = 0.3 at 16 vertices
-    0.4284049085 with 5e-15, no warning, 4.0e-4 and 1.1e-5 (relative) above ``bound``, the exact length of the
-    curves that the starts beside the corners find since stop 31 (a tent of 1.5 segments, not the corner vertex
-    alone): each value, less its estimate, must be at most that proven upper bound of ``J``."""
+    0.4284049085 with 5e-15, no warning, 3.9e-4 and 1.1e-5 (relative) above ``bound``, the exact length of
+    curves found at stop 31 (by the starts beside the corners, a tent of three segments then, and from bent
+    starts): each value, less its estimate, must be at most that proven upper bound of ``J``."""
     res = direct.penalty(_limacon(n, a))
     assert len(res.crossings) == 1
     assert res.value - res.error_estimate <= bound
