@@ -138,12 +138,14 @@ _CORNER_FAMILY = 1e-4
 #: the starts beside a corner move the corner vertex across the curve by 0.3 of its longer segment, and the
 #: vertices within this many of those segments (along the curve) a tent's share of that
 _CORNER_REACH = 1.5
-#: a refined open curve within this fraction of its chord from the chord is straight (see _bent_starts) ...
-_STRAIGHT = 1e-9
+#: a refined open curve within this fraction of its chord from the chord counts as straight (see _bent_starts) ...
+_STRAIGHT = 1e-5
 #: a chosen curve from a crossing point to the boundary whose chord is at most this many fine cells gets straight starts
 _SHORT = 4.0
 #: ... and is refined again from starts bent across the chord by these fractions of its length, to either side
 _BEND = (0.01, 0.1)
+#: segments of the bent starts (refined from there, not from their coarse geodesics)
+_BENT_SEGMENTS = 16
 
 #: crossings whose tangents make an angle with sine below this are grazing: their domain always gets a second pass
 _GRAZING = 0.1
@@ -941,13 +943,21 @@ def _bent_starts(path: RefinedPath, job: GeodesicJob) -> list[GeodesicJob]:
     limaçons ``a + cos t`` sampled from ``t = 0`` whose straight curves were
     up to 18 % above ``J`` at ``tol=1e-5`` with estimates of 1e-14 relative,
     no warning (the shortest curves bulge by 7 % of their chord).  Four
-    starts bend the curve across its chord, to either side, by ``_BEND``
-    (1 % and 10 %) of the chord's length at its middle, in a parabola; the
-    ends stay.  The limaçon ``a = 0.3`` at 16 vertices needs the small bend
-    (its shortest curves bulge by 0.9 %: from a bend of 3 % or 10 % the
-    refinement came back to the straight curve, 1.1e-5 above, with an
-    estimate of 5e-13), ``a = 0.8`` at 12 vertices settles 2e-5 lower from
-    the large one.  Closed curves are left out.
+    starts bend the chord, to either side, by ``_BEND`` (1 % and 10 %) of
+    its length at its middle, in a parabola of ``_BENT_SEGMENTS`` (16)
+    segments; the ends stay.  They are refined from there, not from their
+    coarse geodesics: those went back to the straight curve (the limaçon
+    ``a = 0.57`` at 15 vertices listed from vertex 3, a second review: 5.1e-5
+    above another listing's ``upper_bound`` with an estimate of 2.5e-9, no
+    warning; refined from the bent polylines at the curve's own 128
+    segments, the four limaçons of this docstring took 6 to 20 times as
+    long).  The limaçon ``a = 0.3`` at 16 vertices needs the
+    small bend (its shortest curves bulge by 0.9 %), ``a = 0.8`` at 12
+    vertices the large one.  A curve counts as straight within
+    ``_STRAIGHT`` (1e-5) of its chord: the same review found straight
+    curves 6.2e-7 of their chord off it (``a = 0.43`` at 12 vertices listed
+    reversed from vertex 4: 3.8e-3 above, estimate 8e-13, no warning, with a
+    threshold of 1e-9).  Closed curves are left out.
     """
     X = np.asarray(path.points, dtype=float)
     if job.closed or len(X) < 3:
@@ -960,9 +970,10 @@ def _bent_starts(path: RefinedPath, job: GeodesicJob) -> list[GeodesicJob]:
     off = (X - X[0]) @ normal
     if np.abs(off).max() > _STRAIGHT * length:
         return []
-    s = np.clip(((X - X[0]) @ chord) / length**2, 0.0, 1.0)
+    X = X[0] + np.linspace(0.0, 1.0, _BENT_SEGMENTS + 1)[:, None] * chord
+    s = np.linspace(0.0, 1.0, _BENT_SEGMENTS + 1)
     bend = (length * 4.0 * s * (1.0 - s))[:, None] * normal
-    return [replace(job, route=X + side * b * bend, coarse=False) for b in _BEND for side in (1.0, -1.0)]
+    return [replace(job, route=X + side * b * bend, coarse=True) for b in _BEND for side in (1.0, -1.0)]
 
 
 def _corner_vertices(domain: Domain, X: np.ndarray, closed: bool) -> np.ndarray:
