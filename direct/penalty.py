@@ -142,6 +142,8 @@ _CORNER_REACH = 1.5
 _STRAIGHT = 1e-5
 #: a chosen curve from a crossing point to the boundary whose chord is at most this many fine cells gets straight starts
 _SHORT = 4.0
+#: ... and along (1, -1) within this fraction of its chord ...
+_ANTIDIAGONAL = 1e-3
 #: ... and is refined again from starts bent across the chord by these fractions of its length, to either side
 _BEND = (0.01, 0.1)
 #: segments of the bent starts (refined from there, not from their coarse geodesics)
@@ -833,7 +835,8 @@ def _more_starts(domain: Domain, metric: Metric, starts: dict, cache: dict, tol:
     return {k: _best_of_starts([cache[k]] + [next(refined) for _ in jobs], family) for k, jobs in starts.items()}
 
 
-def _beside_corners(domain: Domain, metric: Metric, starts: dict, held: dict, tol: float, atol: float) -> dict:
+def _beside_corners(domain: Domain, metric: Metric, starts: dict, held: dict, tol: float, atol: float,
+                    spread_if_held: bool = True) -> dict:
     """Refine the starts beside the corners (:func:`_corner_starts`) in one batch: ``{key: RefinedPath}``.
 
     The shortest of the curve held and its starts is kept, with the larger
@@ -868,6 +871,8 @@ def _beside_corners(domain: Domain, metric: Metric, starts: dict, held: dict, to
         # starts in other local geodesics this close to the shortest: another could find one shorter still
         spread = max([rp.length - best.length for rp in found if rp.length <= (1 + _CORNER_FAMILY) * best.length],
                      default=0.0)
+        if best is held[k] and not spread_if_held:
+            spread = 0.0
         estimate = max(best.error_estimate, held[k].error_estimate) + spread
         if best is not held[k] or spread > 0:
             out[k] = replace(best, error_estimate=estimate)
@@ -884,9 +889,13 @@ def _leave_corners(domain: Domain, metric: Metric, keys: list, held: dict, job_o
     replaced found nothing on the limaçon where the replacement stops at the
     next corner of a row (README, *Known limitations*).
     """
-    corner = {k: _corner_starts(domain, held[k], job_of(k, held[k].points))
-              + _bent_starts(held[k], job_of(k, held[k].points)) for k in keys}
-    return _beside_corners(domain, metric, corner, held, tol, atol)
+    corner = {k: _corner_starts(domain, held[k], job_of(k, held[k].points)) for k in keys}
+    # straight curves, again from bent starts (of the curves as held: a corner start may bend them a little); their
+    # spread counts only where one of them beats the best curve so far
+    bent = {k: _bent_starts(held[k], job_of(k, held[k].points)) for k in keys}
+    out = _beside_corners(domain, metric, corner, held, tol, atol)
+    out.update(_beside_corners(domain, metric, bent, {**held, **out}, tol, atol, spread_if_held=False))
+    return out
 
 
 def _straight_starts(domain: Domain, key: tuple, path: RefinedPath, ng: int, cell: float) -> list[GeodesicJob]:
@@ -957,10 +966,19 @@ def _bent_starts(path: RefinedPath, job: GeodesicJob) -> list[GeodesicJob]:
     ``_STRAIGHT`` (1e-5) of its chord: the same review found straight
     curves 6.2e-7 of their chord off it (``a = 0.43`` at 12 vertices listed
     reversed from vertex 4: 3.8e-3 above, estimate 8e-13, no warning, with a
-    threshold of 1e-9).  Closed curves are left out.
+    threshold of 1e-9).  Only curves along ``(1, -1)`` (within
+    ``_ANTIDIAGONAL``, 1e-3 of the chord: that limaçon's was 1.8e-5 off),
+    the direction of that fixed line: with every straight curve, the
+    built-in scenes whose metric vanishes along whole lines (``fig13``,
+    ``reversed``, ``ring``; ``fig11`` with ``g``) took 10 to 190 times as
+    long, their estimates up to 1e5 times wider, for the same values.  Their
+    straight curves run from the diagonal to the diagonal (both ends free,
+    the curves of the flux condition, which :func:`_family_shifts` starts
+    again anyway): those are left out, and closed curves.  A start's spread
+    counts only where one of them beats the curve (:func:`_leave_corners`).
     """
     X = np.asarray(path.points, dtype=float)
-    if job.closed or len(X) < 3:
+    if job.closed or len(X) < 3 or (job.start_ground is not None and job.end_ground is not None):
         return []
     chord = X[-1] - X[0]
     length = float(np.hypot(*chord))
@@ -968,8 +986,8 @@ def _bent_starts(path: RefinedPath, job: GeodesicJob) -> list[GeodesicJob]:
         return []
     normal = np.array([-chord[1], chord[0]]) / length
     off = (X - X[0]) @ normal
-    if np.abs(off).max() > _STRAIGHT * length:
-        return []
+    if abs(chord[0] + chord[1]) > _ANTIDIAGONAL * length or np.abs(off).max() > _STRAIGHT * length:
+        return []  # not straight, or not along (1, -1)
     X = X[0] + np.linspace(0.0, 1.0, _BENT_SEGMENTS + 1)[:, None] * chord
     s = np.linspace(0.0, 1.0, _BENT_SEGMENTS + 1)
     bend = (length * 4.0 * s * (1.0 - s))[:, None] * normal

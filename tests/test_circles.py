@@ -1003,8 +1003,9 @@ def _limacon(n: int, a: float, reverse: bool = False, roll: int = 0, angle: floa
 
 
 def test_bent_and_straight_starts():
-    """``_bent_starts`` bends the chord of a straight open curve (within 1e-5 of its chord) by 1 % and 10 % of it at
-    its middle, to either side, in 16 segments, its ends kept, and leaves curved and closed ones alone;
+    """``_bent_starts`` bends the chord of a straight open curve along (1, -1) (within 1e-5 of its chord) by 1 % and
+    10 % of it at its middle, to either side, in 16 segments, its ends kept, and leaves alone curved ones, those
+    along other directions, those with both ends free and closed ones;
     ``_straight_starts`` runs straight from the crossing point of a short curve to its ground along the parameter
     axes and (1, -1), oriented as the curve, and leaves long curves alone."""
     import sys
@@ -1013,7 +1014,7 @@ def test_bent_and_straight_starts():
     from direct.refinement import GeodesicJob, RefinedPath
 
     P = sys.modules["direct.penalty"]
-    X = np.column_stack([np.linspace(1.0, 2.0, 9), np.linspace(3.0, 2.5, 9)])
+    X = np.column_stack([np.linspace(1.0, 2.0, 9), np.linspace(3.0, 2.0, 9)])  # along (1, -1)
     path = RefinedPath(X, 1.0, 1.0, 0.0, 8)
     starts = P._bent_starts(path, GeodesicJob(X, end_ground=0))
     chord = X[-1] - X[0]
@@ -1026,8 +1027,11 @@ def test_bent_and_straight_starts():
         off = (start.route - X[0]) @ normal
         assert np.all(side * off >= -1e-12) and np.all(side * off <= bend * np.linalg.norm(chord) + 1e-12)
         assert start.end_ground == 0 and start.start_ground is None
+    assert P._bent_starts(path, GeodesicJob(X, start_ground=0, end_ground=1)) == []  # both ends free
+    Z = np.column_stack([X[:, 0], np.linspace(3.0, 2.5, 9)])  # straight, not along (1, -1)
+    assert P._bent_starts(RefinedPath(Z, 1.0, 1.0, 0.0, 8), GeodesicJob(Z, end_ground=0)) == []
     Y = X.copy()
-    Y[4, 1] += 1e-4  # 9e-5 of the chord off it
+    Y[4, 1] += 1e-4  # 7e-5 of the chord off it
     assert P._bent_starts(RefinedPath(Y, 1.0, 1.0, 0.0, 8), GeodesicJob(Y, end_ground=0)) == []
     Y[4, 1] = X[4, 1] + 1e-7  # within 1e-5 of the chord: straight still
     assert len(P._bent_starts(RefinedPath(Y, 1.0, 1.0, 0.0, 8), GeodesicJob(Y, end_ground=0))) == 4
