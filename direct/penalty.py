@@ -835,9 +835,14 @@ def _more_starts(domain: Domain, metric: Metric, starts: dict, cache: dict, tol:
     return {k: _best_of_starts([cache[k]] + [next(refined) for _ in jobs], family) for k, jobs in starts.items()}
 
 
-def _beside_corners(domain: Domain, metric: Metric, starts: dict, held: dict, tol: float, atol: float,
-                    spread_if_held: bool = True) -> dict:
-    """Refine the starts beside the corners (:func:`_corner_starts`) in one batch: ``{key: RefinedPath}``.
+def _restarted(domain: Domain, metric: Metric, starts: dict, held: dict, tol: float, atol: float,
+               spread_if_held: bool = True) -> dict:
+    """Refine further starts of chosen curves in one batch, the changed entries: ``{key: RefinedPath}``.
+
+    The starts beside corners (:func:`_corner_starts`), bent
+    (:func:`_bent_starts`) or straight (:func:`_straight_starts`).  With
+    ``spread_if_held=False`` their spread counts only where one of them
+    beats the curve held.
 
     The shortest of the curve held and its starts is kept, with the larger
     of its own estimate and the held curve's: a start that settles in the
@@ -881,20 +886,21 @@ def _beside_corners(domain: Domain, metric: Metric, starts: dict, held: dict, to
 
 def _leave_corners(domain: Domain, metric: Metric, keys: list, held: dict, job_of, tol: float,
                    atol: float) -> dict:
-    """Refine the chosen curves held at corners of the cells again from beside them: ``{key: RefinedPath}``.
+    """Refine the chosen curves held at corners of the cells again from beside them, straight ones from bent starts.
 
-    ``job_of(key, points)`` is the curve as a job, its ends held as the
-    entry's are; see :func:`_corner_starts` and
-    :func:`_beside_corners`.  Once: a second round on the curves the first
+    Returns ``{key: RefinedPath}``, the changed entries.  ``job_of(key,
+    points)`` is the curve as a job, its ends held as the entry's are; see
+    :func:`_corner_starts`, :func:`_bent_starts` and :func:`_restarted`.  Once: a second round on the curves the first
     replaced found nothing on the limaçon where the replacement stops at the
     next corner of a row (README, *Known limitations*).
     """
-    corner = {k: _corner_starts(domain, held[k], job_of(k, held[k].points)) for k in keys}
+    jobs = {k: job_of(k, held[k].points) for k in keys}
+    corner = {k: _corner_starts(domain, held[k], jobs[k]) for k in keys}
     # straight curves, again from bent starts (of the curves as held: a corner start may bend them a little); their
     # spread counts only where one of them beats the best curve so far
-    bent = {k: _bent_starts(held[k], job_of(k, held[k].points)) for k in keys}
-    out = _beside_corners(domain, metric, corner, held, tol, atol)
-    out.update(_beside_corners(domain, metric, bent, {**held, **out}, tol, atol, spread_if_held=False))
+    bent = {k: _bent_starts(held[k], jobs[k]) for k in keys}
+    out = _restarted(domain, metric, corner, held, tol, atol)
+    out.update(_restarted(domain, metric, bent, {**held, **out}, tol, atol, spread_if_held=False))
     return out
 
 
@@ -913,34 +919,31 @@ def _straight_starts(domain: Domain, key: tuple, path: RefinedPath, ng: int, cel
     oriented as ``path`` is.  Only on a circle with itself (the annulus, its
     ground the diagonal): on every piece, the random interval scenes of
     ``tests/conftest.py`` (seeds 5 to 9, at most 10 crossings) took 1.8,
-    0.18, 1.0, 1.1 and 0.19 s instead of 0.22, 0.085, 0.035, 0.23 and 0.12
-    s, with values within 1e-6 (relative) of the old ones.  None for the
-    other entries.
+    0.18, 1.0, 1.1 and 0.19 s instead of 0.22, 0.086, 0.035, 0.23 and 0.12
+    s; without the limit of ``_SHORT`` cells on the segments, seeds 0 to 29
+    took 2.1 s instead of 0.25 s (median), their values within 1.1e-6
+    (relative) of the old ones.  None for the other entries.
     """
-    u, v = key[0], key[1]
-    if domain.kind != "annulus" or len(key) != 2 or (u < ng) == (v < ng):
+    u, v = key
+    if domain.kind != "annulus" or (u < ng) == (v < ng):
         return []
     X = np.asarray(path.points, dtype=float)
     if float(np.hypot(*(X[-1] - X[0]))) > _SHORT * cell:
         return []
     from_ground = u < ng
     g, p = (u, X[-1]) if from_ground else (v, X[0])
-    dirs = np.array([[0.0, 1.0], [1.0, 0.0], [1.0, -1.0]])
-    dirs = np.vstack([dirs, -dirs]) @ domain._inverse_basis.T  # in local coordinates
-    p_local = np.repeat(domain.to_local(p[None, :], wrap=False), len(dirs), axis=0)
-    t, which = domain.exit_time(p_local, dirs)
-    reach = t * np.hypot(*(dirs @ domain.basis.T).T)  # the length of each segment, in parameters
-    keep = np.isfinite(t) & (t > 0) & (which == g) & (reach <= _SHORT * cell)  # the ground near the point only
-    starts = []
-    for q in domain.to_param(p_local[keep] + t[keep, None] * dirs[keep]):
-        route = np.array([q, p]) if from_ground else np.array([p, q])
-        starts.append(GeodesicJob(route, start_ground=g if from_ground else None,
-                                  end_ground=None if from_ground else g))
-    return starts
+    axes = np.array([[0.0, 1.0], [1.0, 0.0], [1.0, -1.0], [0.0, -1.0], [-1.0, 0.0], [-1.0, 1.0]])  # in parameters
+    p_local = np.repeat(domain.to_local(p[None, :], wrap=False), len(axes), axis=0)
+    t, which = domain.exit_time(p_local, domain.to_local(axes, wrap=False))  # to_local is linear: directions too
+    keep = np.isfinite(t) & (t > 0) & (which == g) & (t * np.hypot(*axes.T) <= _SHORT * cell)  # the ground nearby
+    ends = p + t[keep, None] * axes[keep]
+    if from_ground:
+        return [GeodesicJob(np.array([q, p]), start_ground=g) for q in ends]
+    return [GeodesicJob(np.array([p, q]), end_ground=g) for q in ends]
 
 
 def _bent_starts(path: RefinedPath, job: GeodesicJob) -> list[GeodesicJob]:
-    """Two starts bent away from a refined curve that came out straight in the parameters, one to each side (or none).
+    """Four starts bent away from a chosen curve that came out straight along ``(1, -1)`` (or none).
 
     A geodesic of ``G`` is straight in the parameters only on the fixed line
     of an isometry: a polygon symmetric about an axis through its crossing
@@ -959,8 +962,8 @@ def _bent_starts(path: RefinedPath, job: GeodesicJob) -> list[GeodesicJob]:
     ``a = 0.57`` at 15 vertices listed from vertex 3, a second review: 5.1e-5
     above another listing's ``upper_bound`` with an estimate of 2.5e-9, no
     warning; refined from the bent polylines at the curve's own 128
-    segments, the four limaçons of this docstring took 6 to 20 times as
-    long).  The limaçon ``a = 0.3`` at 16 vertices needs the
+    segments, the limaçons ``a = 0.3`` at 16 vertices, 0.43 at 12, 0.454 at
+    14 and 0.8 at 12 took 3.7 to 18 times as long).  The limaçon ``a = 0.3`` at 16 vertices needs the
     small bend (its shortest curves bulge by 0.9 %), ``a = 0.8`` at 12
     vertices the large one.  A curve counts as straight within
     ``_STRAIGHT`` (1e-5) of its chord: the same review found straight
@@ -971,7 +974,7 @@ def _bent_starts(path: RefinedPath, job: GeodesicJob) -> list[GeodesicJob]:
     the direction of that fixed line: with every straight curve, the
     built-in scenes whose metric vanishes along whole lines (``fig13``,
     ``reversed``, ``ring``; ``fig11`` with ``g``) took 10 to 190 times as
-    long, their estimates up to 1e5 times wider, for the same values.  Their
+    long, their estimates up to 7e4 times wider, for the same values.  Their
     straight curves run from the diagonal to the diagonal (both ends free,
     the curves of the flux condition, which :func:`_family_shifts` starts
     again anyway): those are left out, and closed curves.  A start's spread
@@ -1472,7 +1475,7 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
             # a chosen curve from a crossing point to the boundary, a few cells long: straight starts (_straight_starts)
             held = {**cache, **out}
             straight = {k: _straight_starts(domain, k, held[k], ng, cell) for k in keys}
-            out.update(_beside_corners(domain, metric, straight, held, tol, atol))
+            out.update(_restarted(domain, metric, straight, held, tol, atol))
             # a chosen curve pinned at a corner of the cells, again from beside it (see _corner_starts)
             out.update(_leave_corners(domain, metric, keys, {**cache, **out}, lambda k, X: GeodesicJob(
                 X, start_ground=k[0] if k[0] < ng else None, end_ground=k[1] if k[1] < ng else None), tol, atol))

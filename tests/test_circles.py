@@ -879,7 +879,7 @@ def test_a_curve_held_beside_a_corner_of_the_cells():
 
 
 def test_a_start_beside_a_corner_keeps_the_estimate_of_the_curve_it_replaces(monkeypatch):
-    """``_beside_corners`` keeps the shortest of the curve held and its starts, with the larger of the two
+    """``_restarted`` keeps the shortest of the curve held and its starts, with the larger of the two
     estimates: a start that settles a little lower in the same geodesic must not drop what the held estimate
     covers (the spread of a family of closed curves: ``nested`` listed from another vertex came out 7.2e-5 above
     ``J`` with an estimate of 8.0e-6); a longer start changes nothing."""
@@ -893,7 +893,7 @@ def test_a_start_beside_a_corner_keeps_the_estimate_of_the_curve_it_replaces(mon
     for lengths, want in (((1.9999, 2.5), (1.9999, 1e-4)), ((2.1, 2.5), None)):
         monkeypatch.setattr(P, "refine_many", lambda domain, metric, jobs, tol, atol, lengths=lengths: [
             RefinedPath(X, L, L, 1e-7, 1) for L in lengths])
-        out = P._beside_corners(None, None, {"k": [GeodesicJob(X), GeodesicJob(X)]}, held, 1e-3, 0.0)
+        out = P._restarted(None, None, {"k": [GeodesicJob(X), GeodesicJob(X)]}, held, 1e-3, 0.0)
         assert (None if not out else (out["k"].length, out["k"].error_estimate)) == want
 
 
