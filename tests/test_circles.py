@@ -1067,6 +1067,79 @@ def test_bent_and_straight_starts():
     assert P._straight_starts(dom, (ng, ng + 1), held, ng, cell=10.0) == []  # point to point
 
 
+
+def _epitrochoid(e: float, first: int, reverse: bool, n: int = 21, t0: float = 0.67483) -> direct.Scene:
+    """The epitrochoid ``e^{it} + e e^{3it}`` at ``n`` vertices ``t = 2 pi k / n + t0`` (reference: the unit
+    ``n``-gon at ``2 pi k / n``), listed from vertex ``first``, forwards or backwards."""
+    k = (first + (-1 if reverse else 1) * np.arange(n)) % n
+    t = 2 * np.pi * k / n
+    z = np.exp(1j * (t + t0)) + e * np.exp(3j * (t + t0))
+    return direct.Scene((direct.Component(np.column_stack([np.cos(t), np.sin(t)]), np.column_stack([z.real, z.imag]),
+                                          closed=True, name="E"),))
+
+
+@pytest.mark.parametrize("e", [0.48587, 0.486])
+def test_an_epitrochoid_whose_small_loops_are_nearly_symmetric(e):
+    """An adversarial review (stop 31): the epitrochoid ``e^{it} + 0.486 e^{3it}`` at 21 vertices, listed backwards
+    from vertex 7, gave 0.0170643 at ``tol=1e-5`` and at the default ``tol`` (estimates 8.4e-8 and 6.4e-7, no
+    warning), 1.96e-3 above the ``upper_bound`` of the listing forwards from vertex 0 (0.0170310): the curve from
+    a small loop's crossing point reached the diagonal 0.15 before the loop's middle, where the shorter one, 0.4 %
+    shorter, reaches it 0.15 after (``_reflected_starts``). Both listings agree now."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", direct.ToleranceWarning)
+        a = direct.penalty(_epitrochoid(e, first=7, reverse=True))
+        b = direct.penalty(_epitrochoid(e, first=0, reverse=False))
+    assert len(a.crossings) == len(b.crossings) == 2
+    assert a.value - a.error_estimate <= b.upper_bound
+    assert b.value - b.error_estimate <= a.upper_bound
+    assert abs(a.value - b.value) <= a.error_estimate + b.error_estimate
+
+
+def test_reflected_starts():
+    """``_reflected_starts`` reflects a curve from a crossing point ``(x1, x2)`` to the diagonal across the line
+    ``y1 + y2 = x1 + x2``: the same point, the end on the same ground, oriented as the curve; none for a curve
+    between two points, or whose reflection is more than 5 % longer."""
+    import sys
+
+    from direct.crossings import find_crossings
+    from direct.refinement import RefinedPath, polyline_lengths
+
+    P = sys.modules["direct.penalty"]
+    met = get_metric("G")
+    scene = _epitrochoid(0.486, first=7, reverse=True)
+    (dom,) = domains(scene, find_crossings(scene))
+    assert dom.kind == "annulus"
+    ng = dom.n_grounds
+    checked = 0
+    for i, (x1, x2) in enumerate(dom.points):
+        a = ng + i
+        g = 0 if x2 >= x1 else 1  # the diagonal below the point (v = 0) or above it (v = S)
+        m = 0.5 * (x1 + x2) + (0.0 if g == 0 else 0.5 * dom.lengths[0])
+        for end in (m - 0.01, m + 0.01):
+            Q = np.array([end, end + (0.0 if g == 0 else dom.lengths[0])])
+            if (Q[1] - x2) * (x1 - Q[0]) < 0:
+                continue
+            X = np.array([[x1, x2], 0.5 * (np.array([x1, x2]) + Q) + [0.002, 0.001], Q])
+            length = float(polyline_lengths(dom, met, [X])[0])
+            for key, path in (((a, g), X), ((g, a), X[::-1])):
+                held = RefinedPath(path, length, length, 0.0, 2)
+                starts = P._reflected_starts(dom, met, key, held, ng)
+                if not starts:
+                    continue
+                (job,) = starts
+                checked += 1
+                Y = job.route if key[0] == a else job.route[::-1]
+                np.testing.assert_allclose(Y[0], [x1, x2])
+                np.testing.assert_allclose(Y[-1, 0] + Y[-1, 1], 2 * (x1 + x2) - Q[0] - Q[1])
+                assert abs((Y[-1, 1] - Y[-1, 0]) - (Q[1] - Q[0])) < 1e-12  # on the same ground
+                np.testing.assert_allclose(Y.sum(axis=1), 2 * (x1 + x2) - X.sum(axis=1))
+                assert (job.start_ground, job.end_ground) == ((g, None) if key[0] == g else (None, g))
+                assert float(polyline_lengths(dom, met, [job.route])[0]) <= 1.05 * length
+                far = RefinedPath(path, length, length / 2, 0.0, 2)  # its reflection more than 5 % longer
+                assert P._reflected_starts(dom, met, key, far, ng) == []
+    assert checked >= 4
+    assert P._reflected_starts(dom, met, (ng, ng + 1), held, ng) == []  # point to point
+
 def test_a_limacon_whose_curves_bulge_from_straight_by_half_a_percent():
     """A second review (stop 31): the limaçon ``a = 0.57`` at 15 vertices gave 0.0493788835 at ``tol=1e-5`` in 13 of
     its 30 listings, estimates at most 4e-11, no warning, 5.1e-5 (relative) above the ``upper_bound`` of the listing
