@@ -1097,8 +1097,9 @@ def test_an_epitrochoid_whose_small_loops_are_nearly_symmetric(e):
 
 def test_reflected_starts():
     """``_reflected_starts`` reflects a curve from a crossing point ``(x1, x2)`` to the diagonal across the line
-    ``y1 + y2 = x1 + x2``: the same point, the end on the same ground, oriented as the curve; none for a curve
-    between two points, or whose reflection is more than 5 % longer."""
+    ``y1 + y2 = x1 + x2``, resampled to 16 segments: the same point, the end on the same ground, oriented as the
+    curve; none for a curve between two points, whose reflection is more than 5 % longer, or which is its own
+    reflection."""
     import sys
 
     from direct.crossings import find_crossings
@@ -1132,11 +1133,21 @@ def test_reflected_starts():
                 np.testing.assert_allclose(Y[0], [x1, x2])
                 np.testing.assert_allclose(Y[-1, 0] + Y[-1, 1], 2 * (x1 + x2) - Q[0] - Q[1])
                 assert abs((Y[-1, 1] - Y[-1, 0]) - (Q[1] - Q[0])) < 1e-12  # on the same ground
-                np.testing.assert_allclose(Y.sum(axis=1), 2 * (x1 + x2) - X.sum(axis=1))
+                assert len(Y) == 17  # 16 segments evenly along the reflection, reflected back onto the curve:
+                Z = (x1 + x2) - Y[:, ::-1]
+                t = np.clip(np.einsum("kij,ij->ki", Z[:, None, :] - X[None, :-1], np.diff(X, axis=0))
+                            / (np.diff(X, axis=0) ** 2).sum(axis=1), 0.0, 1.0)
+                gap = np.linalg.norm(X[None, :-1] + t[..., None] * np.diff(X, axis=0) - Z[:, None, :], axis=2)
+                assert gap.min(axis=1).max() < 1e-12
                 assert (job.start_ground, job.end_ground) == ((g, None) if key[0] == g else (None, g))
                 assert float(polyline_lengths(dom, met, [job.route])[0]) <= 1.05 * length
                 far = RefinedPath(path, length, length / 2, 0.0, 2)  # its reflection more than 5 % longer
                 assert P._reflected_starts(dom, met, key, far, ng) == []
+        # a curve along the antidiagonal is its own reflection (the mirror image of a symmetric loop's): none
+        d = 0.0 if g == 0 else dom.lengths[0]
+        S = np.array([[x1, x2], [(x1 + x2 - d) / 2, (x1 + x2 + d) / 2]])
+        same = float(polyline_lengths(dom, met, [S])[0])
+        assert P._reflected_starts(dom, met, (a, g), RefinedPath(S, same, same, 0.0, 1), ng) == []
     assert checked >= 4
     assert P._reflected_starts(dom, met, (ng, ng + 1), held, ng) == []  # point to point
 
