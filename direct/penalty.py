@@ -1344,6 +1344,16 @@ def _mirrored(rp: RefinedPath, period: float) -> RefinedPath:
     return replace(rp, points=np.column_stack([X[:, 1], X[:, 0] + period]))
 
 
+def _mirror_key(key: tuple, cache: dict, node: dict) -> tuple[tuple, bool]:
+    """The entry of ``key``'s mirror image in ``cache`` (see :func:`_mirror_of`), and whether it runs the other way.
+
+    The curve may be stored the other way round, and the swap twice is the
+    shift ``(L, L)``, a period: the same curve.
+    """
+    m = (node[key[0]], node[key[1]])
+    flip = m not in cache and m[::-1] in cache
+    return (m[::-1] if flip else m), flip
+
 def _mirror_pairs(keys: list, cache: dict, node: dict, period: float) -> dict:
     """Give each chosen curve of a circle with itself the better of itself and its mirror image: ``{key: RefinedPath}``.
 
@@ -1364,11 +1374,7 @@ def _mirror_pairs(keys: list, cache: dict, node: dict, period: float) -> dict:
     for k in keys:
         if k not in cache or k in out:
             continue
-        m = (node[k[0]], node[k[1]])
-        # the curve may be stored the other way, and the swap twice is the shift (L, L), a period: the same curve
-        flip = m not in cache and m[::-1] in cache
-        if flip:
-            m = m[::-1]
+        m, flip = _mirror_key(k, cache, node)
         if m == k:
             continue
         if m in cache:
@@ -1617,8 +1623,19 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
             # and one that runs beside a vertex line, folded onto each side of it (_crease_starts; they count only
             # where one beats the curve by more than its estimate)
             held = {**cache, **out}
-            folded = {k: _crease_starts(domain, k, held[k], ng, cell) for k in keys}
-            out.update(_restarted(domain, metric, folded, held, tol, atol, clearly=True))
+            folded: dict = {}
+            # one curve of each mirror pair, the longer (fig10: 12 starts, twice the time), its image following
+            for k in sorted(keys, key=lambda k: -held[k].length):
+                if mirror is None or _mirror_key(k, held, mirror[0])[0] not in folded:
+                    folded[k] = _crease_starts(domain, k, held[k], ng, cell)
+            changed = _restarted(domain, metric, folded, held, tol, atol, clearly=True)
+            if mirror is not None:
+                for k, rp in list(changed.items()):
+                    m, flip = _mirror_key(k, held, mirror[0])
+                    if m != k and m in held and m not in changed:
+                        image = _mirrored(rp, mirror[1])
+                        changed[m] = image.reversed() if flip else image
+            out.update(changed)
             # a chosen curve pinned at a corner of the cells, again from beside it (see _corner_starts)
             out.update(_leave_corners(domain, metric, keys, {**cache, **out}, lambda k, X: GeodesicJob(
                 X, start_ground=k[0] if k[0] < ng else None, end_ground=k[1] if k[1] < ng else None), tol, atol))
