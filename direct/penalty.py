@@ -1080,6 +1080,7 @@ def _crease_starts(domain: Domain, key: tuple, path: RefinedPath, ng: int, cell:
                 starts.append(GeodesicJob(Y, start_ground=u if u < ng else None, end_ground=v if v < ng else None))
     return starts
 
+
 def _bent_starts(path: RefinedPath, job: GeodesicJob) -> list[GeodesicJob]:
     """Four starts bent away from a chosen curve that came out straight along ``(1, -1)`` (or none).
 
@@ -1342,10 +1343,14 @@ def _mirror_of(domain: Domain, metric: Metric):
     return node, float(domain.lengths[0])
 
 
-def _mirrored(rp: RefinedPath, period: float) -> RefinedPath:
-    """The mirror image ``(x1, x2) -> (x2, x1 + L)`` of a refined curve on a circle's domain with itself."""
+def _mirrored(rp: RefinedPath, period: float, flip: bool = False) -> RefinedPath:
+    """The mirror image ``(x1, x2) -> (x2, x1 + L)`` of a refined curve on a circle's domain with itself.
+
+    With ``flip``, run the other way (the entry of :func:`_mirror_key` stored reversed).
+    """
     X = np.asarray(rp.points, dtype=float)
-    return replace(rp, points=np.column_stack([X[:, 1], X[:, 0] + period]))
+    image = replace(rp, points=np.column_stack([X[:, 1], X[:, 0] + period]))
+    return image.reversed() if flip else image
 
 
 def _mirror_key(key: tuple, cache: dict, node: dict) -> tuple[tuple, bool]:
@@ -1357,6 +1362,7 @@ def _mirror_key(key: tuple, cache: dict, node: dict) -> tuple[tuple, bool]:
     m = (node[key[0]], node[key[1]])
     flip = m not in cache and m[::-1] in cache
     return (m[::-1] if flip else m), flip
+
 
 def _mirror_pairs(keys: list, cache: dict, node: dict, period: float) -> dict:
     """Give each chosen curve of a circle with itself the better of itself and its mirror image: ``{key: RefinedPath}``.
@@ -1381,13 +1387,8 @@ def _mirror_pairs(keys: list, cache: dict, node: dict, period: float) -> dict:
         m, flip = _mirror_key(k, cache, node)
         if m == k:
             continue
-        if m in cache:
-            image = _mirrored(cache[m], period)
-            best = _best_of_starts([cache[k], image.reversed() if flip else image])
-        else:
-            best = cache[k]
-        image = _mirrored(best, period)
-        out[k], out[m] = best, (image.reversed() if flip else image)
+        best = _best_of_starts([cache[k], _mirrored(cache[m], period, flip)]) if m in cache else cache[k]
+        out[k], out[m] = best, _mirrored(best, period, flip)
     return out
 
 
@@ -1637,8 +1638,7 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
                 for k, rp in list(changed.items()):
                     m, flip = _mirror_key(k, held, mirror[0])
                     if m != k and m in held and m not in changed:
-                        image = _mirrored(rp, mirror[1])
-                        changed[m] = image.reversed() if flip else image
+                        changed[m] = _mirrored(rp, mirror[1], flip)
             out.update(changed)
             # a chosen curve pinned at a corner of the cells, again from beside it (see _corner_starts)
             out.update(_leave_corners(domain, metric, keys, {**cache, **out}, lambda k, X: GeodesicJob(

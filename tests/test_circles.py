@@ -1095,7 +1095,6 @@ def test_an_epitrochoid_whose_small_loops_are_nearly_symmetric(e):
     assert abs(a.value - b.value) <= a.error_estimate + b.error_estimate
 
 
-
 def _trefoil(reverse: bool = False, roll: int = 0, n: int = 27, c: float = 1.6, t0: float = 0.03) -> direct.Scene:
     """The curve ``r = 1 + c cos 3t`` at ``n`` vertices ``t = 2 pi k / n + t0`` (reference: the unit circle at the
     same ``t``), its vertex list reversed, then rolled by ``roll``."""
@@ -1127,6 +1126,7 @@ def test_a_trefoil_whose_curves_run_beside_a_vertex_line():
     errors = np.array([p.error_estimate for p in sorted(a.pairs, key=lambda p: p.length)])
     for k in range(0, len(lengths), 6):  # each copy twice (the curve and its mirror image), three copies
         assert lengths[k + 5] - lengths[k] <= errors[k:k + 6].max() + 1e-12 * lengths[k]
+
 
 def test_reflected_starts():
     """``_reflected_starts`` reflects a curve from a crossing point ``(x1, x2)`` to the diagonal across the line
