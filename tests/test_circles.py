@@ -1128,6 +1128,39 @@ def test_a_trefoil_whose_curves_run_beside_a_vertex_line():
         assert lengths[k + 5] - lengths[k] <= errors[k:k + 6].max() + 1e-12 * lengths[k]
 
 
+
+def test_crease_starts():
+    """``_crease_starts`` folds a curve's stretch beside a vertex line (within one cell, two cells or more along it)
+    onto the side it is not wholly on (each side, for a stretch across it): offsets kept in size, the other
+    vertices and the ends as they were; none for a stretch shorter than two cells or farther than one."""
+    import sys
+
+    from direct.crossings import find_crossings
+    from direct.metric import _vertex_params
+    from direct.refinement import RefinedPath
+
+    P = sys.modules["direct.penalty"]
+    scene = _trefoil()
+    (dom,) = domains(scene, find_crossings(scene))
+    ng, cell = dom.n_grounds, 0.01
+    line = _vertex_params(dom.comps[0], 0.0, dom.lengths[0])[5]  # a vertex line x1 = line
+    x2 = np.linspace(2.0, 2.06, 13)  # six cells along the line, 0.3 cells to its left
+    X = np.column_stack([np.full(13, line - 0.003), x2])
+    X[[0, -1], 0] = line - 0.05  # the ends away from it
+    (job,) = P._crease_starts(dom, (ng, ng + 1), RefinedPath(X, 1.0, 1.0, 0.0, 12), ng, cell)
+    np.testing.assert_allclose(job.route[1:-1, 0], line + 0.003)  # folded onto the right
+    np.testing.assert_array_equal(job.route[[0, -1]], X[[0, -1]])
+    np.testing.assert_array_equal(job.route[:, 1], x2)
+    assert job.start_ground is None and job.end_ground is None
+    Y = X.copy()
+    Y[1:-1:2, 0] = line + 0.003  # across the line and back: a start on each side
+    assert len(P._crease_starts(dom, (ng, ng + 1), RefinedPath(Y, 1.0, 1.0, 0.0, 12), ng, cell)) == 2
+    short = RefinedPath(X, 1.0, 1.0, 0.0, 12)
+    assert P._crease_starts(dom, (ng, ng + 1), short, ng, cell=0.05) == []  # 1.2 cells along it
+    far = X.copy()
+    far[1:-1, 0] = line - 0.02  # two cells away
+    assert P._crease_starts(dom, (ng, ng + 1), RefinedPath(far, 1.0, 1.0, 0.0, 12), ng, cell) == []
+
 def test_reflected_starts():
     """``_reflected_starts`` reflects a curve from a crossing point ``(x1, x2)`` to the diagonal across the line
     ``y1 + y2 = x1 + x2``, resampled to 16 segments: the same point, the end on the same ground, oriented as the
