@@ -27,7 +27,7 @@ from typing import Literal
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.csgraph import dijkstra
+from scipy.sparse.csgraph import connected_components, dijkstra
 
 from .grid import GridGraph
 from .refinement import GeodesicJob, RefinedPath, coarse_geodesic, coarse_geodesics, refine, refine_many
@@ -51,6 +51,7 @@ def _paths_from_predecessors(pred: np.ndarray, sources: np.ndarray):
             out.append(nxt)
         return out[::-1]
 
+    route.pred = pred
     return route
 
 
@@ -153,6 +154,14 @@ def grid_distances(
         boundary and cost at most ``(1 + margin)`` times the best: the
         geodesic to a boundary can have several local minima whose grid
         lengths differ by less than the grid's bias.
+        ``route.alternatives(a, b, margin, share, most)`` lists other routes
+        between two terminals (scipy; none with networkx), those of *choice
+        routing*: each runs along a plateau of the two trees of shortest
+        paths from ``a`` and from ``b`` (edges that both trees use, one each
+        way) that does not touch ``route(a, b)``, is at least ``share`` of
+        ``T[a, b]`` long, and costs at most ``(1 + margin)`` times
+        ``T[a, b]``; the ``most`` cheapest (the other side of a hill of the
+        metric, see :func:`direct.penalty._alternative_starts`).
     """
     src, dst = graph.sources, graph.targets
     if searches is not None and backend == "scipy":
@@ -204,7 +213,43 @@ def grid_distances(
         picked = picked[np.argsort(cost[picked])][:most]
         return [graph.node_path(node_route(a, int(nodes[k])) + [g]) for k in picked]
 
+    def alternatives(a: int, b: int, margin: float, share: float, most: int = 2) -> list[np.ndarray]:
+        pred = getattr(node_route, "pred", None)  # the trees of shortest paths (scipy only)
+        d = dist[a, dst[b]]
+        if pred is None or not np.isfinite(d):
+            return []
+        da, db = dist[a], dist[b]
+        n = np.flatnonzero(pred[a] >= 0)
+        p = pred[a][n]
+        both = pred[b][p] == n  # the edge p -> n in a's tree, n -> p in b's: a plateau of the two trees
+        n, p = n[both], p[both]
+        via = da[n] + db[n]
+        keep = via <= (1.0 + margin) * d
+        n, p, via = n[keep], p[keep], via[keep]
+        if not len(n):
+            return []
+        size = len(da)  # the plateaus: components of the shared edges
+        _, label = connected_components(sp.coo_matrix((np.ones(len(n)), (n, p)), shape=(size, size)), directed=False)
+        main = np.unique(label[node_route(a, dst[b])])
+        lab = label[n]
+        seg = da[n] - da[p]
+        other = ~np.isin(lab, main)
+        if not other.any():
+            return []
+        lab, seg, via, n = lab[other], seg[other], via[other], n[other]
+        labels, inv = np.unique(lab, return_inverse=True)
+        length = np.bincount(inv, weights=seg)  # each plateau's grid length and the cost of its route
+        cost = np.full(len(labels), np.inf)
+        np.minimum.at(cost, inv, via)
+        ok = np.flatnonzero(length >= share * d)
+        out = []
+        for k in ok[np.argsort(cost[ok])][:most]:
+            m = int(n[np.flatnonzero(inv == k)[0]])  # a node of the plateau: the route a -> m -> b runs along it
+            out.append(graph.node_path(node_route(a, m) + node_route(b, m)[::-1][1:]))
+        return out
+
     route.candidates = candidates
+    route.alternatives = alternatives
     return dist[:, dst], route
 
 

@@ -1161,6 +1161,66 @@ def test_crease_starts():
     far[1:-1, 0] = line - 0.02  # two cells away
     assert P._crease_starts(dom, (ng, ng + 1), RefinedPath(far, 1.0, 1.0, 0.0, 12), ng, cell) == []
 
+def _rose(reverse: bool = False, n: int = 43, c: float = 2.5, k: int = 4, t0: float = 0.013) -> direct.Scene:
+    """The rose ``r = 1 + c cos kt`` at ``n`` vertices ``t = 2 pi j / n + t0`` (reference: the unit ``n``-gon at
+    ``2 pi j / n``), its vertex list reversed or not."""
+    t = 2 * np.pi * np.arange(n) / n
+    z = (1 + c * np.cos(k * (t + t0))) * np.exp(1j * (t + t0))
+    ref, dfm = np.column_stack([np.cos(t), np.sin(t)]), np.column_stack([z.real, z.imag])
+    if reverse:
+        ref, dfm = ref[::-1], dfm[::-1]
+    return direct.Scene((direct.Component(ref, dfm, closed=True, name="R"),))
+
+
+def test_a_rose_whose_curves_go_round_a_hill():
+    """An adversarial review (stop 32): the rose ``r = 1 + 2.5 cos 4t`` at 43 vertices (24 crossings near the
+    origin) gave 37.673166 at the default ``tol`` with an estimate of 2.9e-3, no warning, 1.2e-4 (relative) above
+    the ``upper_bound`` of its reversed listing (37.665620): a pair of curves between two crossing points went
+    round a hill of the metric at 0.9736495, the other side 0.9694202 (``_alternative_starts``). Both listings
+    agree now."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", direct.ToleranceWarning)
+        a = direct.penalty(_rose())
+        b = direct.penalty(_rose(reverse=True))
+    assert len(a.crossings) == len(b.crossings) == 24
+    assert a.value - a.error_estimate <= b.upper_bound
+    assert b.value - b.error_estimate <= a.upper_bound
+    assert abs(a.value - b.value) <= a.error_estimate + b.error_estimate
+
+
+def test_alternative_routes_go_the_other_way_round():
+    """``route.alternatives`` of ``grid_distances`` on the rose of ``test_a_rose_whose_curves_go_round_a_hill``:
+    between the two crossing points on either side of the hill it finds the route round the other side, from
+    one point to the other, within the margin of the grid's length and at least 10 cells from the route
+    (its coarse geodesic within 2 % of the route's); none with a margin of zero, or a plateau longer than the
+    route."""
+    from direct.crossings import find_crossings
+    from direct.refinement import GeodesicJob, coarse_geodesics, polyline_lengths
+
+    met = get_metric("G")
+    scene = _rose()
+    (dom,) = domains(scene, find_crossings(scene))
+    graph = build_graph(dom, met, resolution=128, neighbours=16)
+    T, route = grid_distances(graph)
+    ng = dom.n_grounds
+    plane = scene.components[0].phi(dom.points[:, 0])
+    a, b = (ng + int(np.argmin(np.hypot(*(plane - q).T))) for q in ([-0.0375, 0.0748], [-0.0635, 0.0196]))
+    assert dom.signs[a - ng] != dom.signs[b - ng]
+    (alt,) = route.alternatives(a, b, 0.0775, 0.25, most=1)
+    main = route(a, b)
+    L = dom.lengths[0]
+    for X in (main, alt):  # from a to b (modulo the circle)
+        for end, p in ((X[0], dom.points[a - ng]), (X[-1], dom.points[b - ng])):
+            assert np.abs((end - p + L / 2) % L - L / 2).max() < 1e-9
+    assert polyline_lengths(dom, met, [alt])[0] <= 1.0775 * T[a, b]
+    gap = np.abs((alt[:, None, :] - main[None, :, :] + L / 2) % L - L / 2).max(axis=2).min(axis=1).max()
+    assert gap >= 10 * graph.cell.max()
+    (_, c_main), (_, c_alt) = coarse_geodesics(dom, met, [GeodesicJob(main), GeodesicJob(alt)])
+    assert abs(c_alt / c_main - 1.0) < 0.02
+    assert route.alternatives(a, b, 0.0, 0.25) == []
+    assert route.alternatives(a, b, 0.0775, 1.01) == []
+
+
 def test_reflected_starts():
     """``_reflected_starts`` reflects a curve from a crossing point ``(x1, x2)`` to the diagonal across the line
     ``y1 + y2 = x1 + x2``, resampled to 16 segments: the same point, the end on the same ground, oriented as the
