@@ -164,8 +164,13 @@ _CREASE_EXTENT = 2.0
 _ALTERNATIVE_SHARE = 0.25
 #: ... at most this many, the cheapest ...
 _ALTERNATIVE_MOST = 2
-#: ... when their coarse geodesics are at most this fraction longer than the curve
+#: ... when their coarse geodesics are at most this fraction longer than the curve (and for _chord_starts)
 _ALTERNATIVE_COARSE = 0.02
+#: a chosen curve between two crossing points that strays at least this many fine cells from its chord is refined
+#: again from its reflection across the chord ...
+_CHORD_BULGE = 0.5
+#: ... when the coarse geodesic from there lies this many fine cells from it somewhere (see _chord_starts)
+_CHORD_AWAY = 1.0
 
 #: crossings whose tangents make an angle with sine below this are grazing: their domain always gets a second pass
 _GRAZING = 0.1
@@ -860,7 +865,8 @@ def _restarted(domain: Domain, metric: Metric, starts: dict, held: dict, tol: fl
     The starts beside corners (:func:`_corner_starts`), bent
     (:func:`_bent_starts`), straight (:func:`_straight_starts`),
     reflected (:func:`_reflected_starts`), along other grid routes
-    (:func:`_alternative_starts`) or folded across a crease
+    (:func:`_alternative_starts`), reflected across the chord
+    (:func:`_chord_starts`) or folded across a crease
     (:func:`_crease_starts`).  With
     ``spread_if_held=False`` their spread counts only where one of them
     beats the curve held.  With ``clearly=True`` a start replaces the
@@ -1076,6 +1082,67 @@ def _alternative_starts(domain: Domain, metric: Metric, keys: list, held: dict, 
         found = [next(coarse) for _ in polys]
         starts[k] = [GeodesicJob(X, coarse=True) for X, length in found
                      if length <= (1.0 + _ALTERNATIVE_COARSE) * held[k].length]
+    return starts
+
+
+def _chord_starts(domain: Domain, metric: Metric, keys: list, held: dict, ends, cell: float) -> dict:
+    """Chosen curves between two crossing points reflected across their chords, as coarse geodesics.
+
+    Returns ``{key: [GeodesicJob]}``.  ``ends(key)`` gives the entry's ends
+    (a point index, or a ground or ``None``: no start).  Where two strands of
+    the deformed curve cross twice, close together (the lens of two petals
+    of a rose ``r = 1 + c cos kt`` with ``k`` even, near the origin), the
+    metric has a ring-shaped valley round a hill in ``M x M`` with the two
+    crossing points on it, and the curve between them goes round one side
+    or the other.  When the valley is narrower than a grid cell the grid's
+    lengths of the two sides are no guide (the grid overestimates a narrow
+    valley many times over) and neither side's route is a plateau of
+    :func:`_alternative_starts`: an adversarial review (stop 33) found six
+    roses with ``k = 6`` and ``8`` up to 4.5e-3 (relative) above ``J`` at
+    the default ``tol``, one still so at ``tol=1e-5`` (estimate 2.1e-5, no
+    warning); the curves round the longer side were up to 51 % longer.  The
+    reflection of the curve across the line through its ends is the other
+    side's shape; it need not lie in the valley (a narrow one), but its
+    coarse geodesic (:func:`direct.refinement.coarse_geodesics`, 16
+    segments) slides into it.  A start when that is at most
+    ``_ALTERNATIVE_COARSE`` (2 %) longer than the curve and ends up at least
+    ``_CHORD_AWAY`` (1) fine cell from it somewhere (Hausdorff distance: not
+    the curve again); only for curves that stray ``_CHORD_BULGE`` (half a
+    fine cell) from their chords (a nearly straight curve is its own
+    reflection; the ring of the review's rose at 40 vertices is 3.7 cells
+    across).  On a rectangle or a
+    triangle (intervals) a reflection that leaves the domain is no start.
+    """
+    away = _CHORD_AWAY * cell
+    todo = []
+    for k in keys:
+        a, b = ends(k)
+        if not (isinstance(a, (int, np.integer)) and isinstance(b, (int, np.integer))):
+            continue
+        X = np.asarray(held[k].points, dtype=float)
+        chord = X[-1] - X[0]
+        if len(X) < 3 or not np.hypot(*chord) > 0:
+            continue
+        d = chord / np.hypot(*chord)
+        R = X - X[0]
+        off = R @ np.array([-d[1], d[0]])  # signed distance from the chord
+        if np.abs(off).max() < _CHORD_BULGE * cell:
+            continue
+        Y = X - 2.0 * np.outer(off, [-d[1], d[0]])
+        if domain.kind in ("rect", "triangle"):
+            local = domain.to_local(Y, wrap=False)
+            S, V = domain.local_lengths
+            if local.min() < 0.0 or local[:, 0].max() > S or local[:, 1].max() > V:
+                continue
+        todo.append((k, X, _resample(Y, _REFLECTED_SEGMENTS)))
+    if not todo:
+        return {}
+    coarse = coarse_geodesics(domain, metric, [GeodesicJob(Y) for _, _, Y in todo])
+    starts: dict = {}
+    for (k, X, _), (Z, length) in zip(todo, coarse):
+        if length <= (1.0 + _ALTERNATIVE_COARSE) * held[k].length and shapely.hausdorff_distance(
+                shapely.linestrings(X), shapely.linestrings(Z)) >= away:
+            starts.setdefault(k, []).append(GeodesicJob(Z, coarse=True))
     return starts
 
 
@@ -1570,6 +1637,10 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
             starts = {k: [GeodesicJob(np.asarray(p, dtype=float), closed=True) for _, p in loops[k[1]][1:]]
                       for k in keys if k[0] == "closed"}
             out = _more_starts(domain, metric, starts, cache, tol, atol, family=_CLOSED_FAMILY)
+            # a chosen curve between two crossing points, from its reflection across its chord (_chord_starts)
+            held = {**cache, **out}
+            out.update(_restarted(domain, metric, _chord_starts(domain, metric, keys, held, ends, cell), held, tol,
+                                  atol, clearly=True))
             # and every chosen curve pinned at a corner of the cells from beside it (see _corner_starts)
             out.update(_leave_corners(domain, metric, keys, {**cache, **out},
                                       lambda k, X: GeodesicJob(X, closed=k[0] == "closed"), tol, atol))
@@ -1687,6 +1758,9 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
             # (_alternative_starts: the other side of a hill of the metric)
             held = {**cache, **out}
             other = _alternative_starts(domain, metric, keys, held, route, ng, bias - 1.0)
+            # and from its reflection across its chord (_chord_starts: the other side of a narrow ring valley)
+            for k, jobs in _chord_starts(domain, metric, keys, held, ends, cell).items():
+                other[k] = other.get(k, []) + jobs
             out.update(_restarted(domain, metric, other, held, tol, atol, clearly=True))
             # and one that runs beside a vertex line, folded onto each side of it (_crease_starts; they count only
             # where one beats the curve by more than its estimate)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import itertools
+import sys
 import warnings
 
 import numpy as np
@@ -1172,20 +1173,57 @@ def _rose(reverse: bool = False, n: int = 43, c: float = 2.5, k: int = 4, t0: fl
     return direct.Scene((direct.Component(ref, dfm, closed=True, name="R"),))
 
 
-def test_a_rose_whose_curves_go_round_a_hill():
-    """An adversarial review (stop 32): the rose ``r = 1 + 2.5 cos 4t`` at 43 vertices (24 crossings near the
+@pytest.mark.parametrize("rose", [dict(), dict(n=40, c=1.288, k=6, t0=0.1998)], ids=["k4", "k6"])
+def test_a_rose_whose_curves_go_round_a_hill(rose):
+    """Adversarial reviews (stops 32 and 33). The rose ``r = 1 + 2.5 cos 4t`` at 43 vertices (24 crossings near the
     origin) gave 37.673166 at the default ``tol`` with an estimate of 2.9e-3, no warning, 1.2e-4 (relative) above
     the ``upper_bound`` of its reversed listing (37.665620): a pair of curves between two crossing points went
-    round a hill of the metric at 0.9736495, the other side 0.9694202 (``_alternative_starts``). Both listings
-    agree now."""
+    round a hill of the metric at 0.9736495, the other side 0.9694202 (``_alternative_starts``). The rose
+    ``r = 1 + 1.288 cos 6t`` at 40 vertices gave 0.2764025 (estimate 1.8e-5), 4.2e-3 above the reversed listing's
+    bound (0.2752401): a pair of curves round a narrow ring valley the long way, 0.0022930 against 0.0017095
+    (``_chord_starts``). Both listings agree now."""
     with warnings.catch_warnings():
         warnings.simplefilter("error", direct.ToleranceWarning)
-        a = direct.penalty(_rose())
-        b = direct.penalty(_rose(reverse=True))
-    assert len(a.crossings) == len(b.crossings) == 24
+        a = direct.penalty(_rose(**rose))
+        b = direct.penalty(_rose(reverse=True, **rose))
+    assert len(a.crossings) == len(b.crossings) == (24 if not rose else 54)
     assert a.value - a.error_estimate <= b.upper_bound
     assert b.value - b.error_estimate <= a.upper_bound
     assert abs(a.value - b.value) <= a.error_estimate + b.error_estimate
+
+
+def test_chord_starts(monkeypatch):
+    """``_chord_starts`` on the rose ``r = 1 + 1.288 cos 6t`` at 40 vertices, as ``penalty`` calls it: each start
+    runs between the ends of its curve, at most 2 % longer and at least a fine cell away from it somewhere (the
+    other side of a ring valley; a few of them here); none for a curve within half a cell of its chord."""
+    import shapely
+
+    from direct.refinement import polyline_lengths
+
+    P = sys.modules["direct.penalty"]
+    calls = []
+
+    def recorded(domain, metric, keys, held, ends, cell):
+        out = chord_starts(domain, metric, keys, held, ends, cell)
+        calls.append((domain, metric, keys, dict(held), ends, cell, out))
+        return out
+
+    chord_starts = P._chord_starts
+    monkeypatch.setattr(P, "_chord_starts", recorded)
+    direct.penalty(_rose(n=40, c=1.288, k=6, t0=0.1998))
+    found = 0
+    for domain, metric, keys, held, _ends, cell, out in calls:
+        for k in keys:
+            X = held[k].points
+            chord = (X[-1] - X[0]) / np.hypot(*(X[-1] - X[0]))
+            bulge = np.abs((X - X[0]) @ [-chord[1], chord[0]]).max()
+            for job in out.get(k, []):
+                found += 1
+                assert bulge >= 0.5 * cell
+                np.testing.assert_allclose(job.route[[0, -1]], X[[0, -1]], atol=1e-12)
+                assert polyline_lengths(domain, metric, [job.route])[0] <= 1.02 * held[k].length
+                assert shapely.hausdorff_distance(shapely.linestrings(X), shapely.linestrings(job.route)) >= cell
+    assert found >= 2
 
 
 def test_alternative_routes_go_the_other_way_round():
