@@ -1,6 +1,6 @@
 """The same scene listed in other ways: do the values agree, and does each value's estimate reach the others' bounds?
 
-Run ``python validation/listings.py`` (about four minutes).  The scenes are those of
+Run ``python validation/listings.py`` (about ten minutes).  The scenes are those of
 ``listings_scenes.json`` beside this file: pieces of ``M x M`` with a circle (tori, a cylinder) on which
 adversarial reviews found values too high by more than their estimates, without a warning, for some
 listings (README, *Known limitations*).  Each scene runs as given, with its two components swapped, with
