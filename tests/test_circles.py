@@ -1143,24 +1143,24 @@ def test_crease_starts():
     P = sys.modules["direct.penalty"]
     scene = _trefoil()
     (dom,) = domains(scene, find_crossings(scene))
-    ng, cell = dom.n_grounds, 0.01
+    cell = 0.01
     line = _vertex_params(dom.comps[0], 0.0, dom.lengths[0])[5]  # a vertex line x1 = line
     x2 = np.linspace(2.0, 2.06, 13)  # six cells along the line, 0.3 cells to its left
     X = np.column_stack([np.full(13, line - 0.003), x2])
     X[[0, -1], 0] = line - 0.05  # the ends away from it
-    (job,) = P._crease_starts(dom, (ng, ng + 1), RefinedPath(X, 1.0, 1.0, 0.0, 12), ng, cell)
+    (job,) = P._crease_starts(dom, RefinedPath(X, 1.0, 1.0, 0.0, 12), cell)
     np.testing.assert_allclose(job.route[1:-1, 0], line + 0.003)  # folded onto the right
     np.testing.assert_array_equal(job.route[[0, -1]], X[[0, -1]])
     np.testing.assert_array_equal(job.route[:, 1], x2)
     assert job.start_ground is None and job.end_ground is None
     Y = X.copy()
     Y[1:-1:2, 0] = line + 0.003  # across the line and back: a start on each side
-    assert len(P._crease_starts(dom, (ng, ng + 1), RefinedPath(Y, 1.0, 1.0, 0.0, 12), ng, cell)) == 2
+    assert len(P._crease_starts(dom, RefinedPath(Y, 1.0, 1.0, 0.0, 12), cell)) == 2
     short = RefinedPath(X, 1.0, 1.0, 0.0, 12)
-    assert P._crease_starts(dom, (ng, ng + 1), short, ng, cell=0.05) == []  # 1.2 cells along it
+    assert P._crease_starts(dom, short, cell=0.05) == []  # 1.2 cells along it
     far = X.copy()
     far[1:-1, 0] = line - 0.02  # two cells away
-    assert P._crease_starts(dom, (ng, ng + 1), RefinedPath(far, 1.0, 1.0, 0.0, 12), ng, cell) == []
+    assert P._crease_starts(dom, RefinedPath(far, 1.0, 1.0, 0.0, 12), cell) == []
 
 def _rose(reverse: bool = False, n: int = 43, c: float = 2.5, k: int = 4, t0: float = 0.013) -> direct.Scene:
     """The rose ``r = 1 + c cos kt`` at ``n`` vertices ``t = 2 pi j / n + t0`` (reference: the unit ``n``-gon at
@@ -1231,16 +1231,16 @@ def test_chord_starts(monkeypatch):
     P = sys.modules["direct.penalty"]
     calls = []
 
-    def recorded(domain, metric, keys, held, ends, cell):
-        out = chord_starts(domain, metric, keys, held, ends, cell)
-        calls.append((domain, metric, keys, dict(held), ends, cell, out))
+    def recorded(domain, metric, keys, held, cell):
+        out = chord_starts(domain, metric, keys, held, cell)
+        calls.append((domain, metric, keys, dict(held), cell, out))
         return out
 
     chord_starts = P._chord_starts
     monkeypatch.setattr(P, "_chord_starts", recorded)
     direct.penalty(_rose(n=40, c=1.288, k=6, t0=0.1998))
     found = 0
-    for domain, metric, keys, held, _ends, cell, out in calls:
+    for domain, metric, keys, held, cell, out in calls:
         for k in keys:
             X = held[k].points
             chord = (X[-1] - X[0]) / np.hypot(*(X[-1] - X[0]))
