@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import pytest
 from conftest import random_crossing_scene
@@ -109,6 +111,66 @@ def test_torus_program_at_every_scale(scale):
                                 {(-1, 0): 0.2 * scale, (1, 0): 0.2 * scale}, 1, 1, (0, 0))
     assert value == pytest.approx(0.7 * scale, rel=1e-12)
     assert sorted(chosen, key=repr) == sorted([((0, 0, (1, 0)), 1), (("closed", (-1, 0)), 1)], key=repr)
+
+
+def _torus_by_enumeration(cost, closed, n, winds, most=3):
+    """Program (34) on a torus by enumeration: every matching, every class of every path, and up to ``most``
+    closed curves of each class for the seam crossings left."""
+    loops = {}
+    for counts in itertools.product(range(most + 1), repeat=len(closed)):
+        w = tuple(int(sum(m * k[a] for m, k in zip(counts, closed))) for a in (0, 1))
+        loops[w] = min(loops.get(w, np.inf), sum(m * c for m, c in zip(counts, closed.values())))
+    best = np.inf
+    classes = sorted({k[2] for k in cost})
+    for perm in itertools.permutations(range(n)):
+        for ks in itertools.product(classes, repeat=n):
+            paths = [cost.get((i, j, k), np.inf) for i, j, k in zip(range(n), perm, ks)]
+            left = tuple(winds[a] - sum(k[a] for k in ks) for a in (0, 1))
+            best = min(best, sum(paths) + loops.get(left, np.inf))
+    return best
+
+
+@pytest.mark.parametrize("incumbent", [4, 0])
+def test_torus_program_against_enumeration(monkeypatch, incumbent):
+    """``solve_torus`` (relaxation, reduced costs, integer program on the columns left) against enumeration on
+    random programs whose relaxation is fractional in about a third of them; with ``incumbent=0`` the first
+    integer program has the relaxation's support only, and a few incumbents leave columns to solve over again."""
+    import scipy.optimize
+
+    import direct.matching
+
+    monkeypatch.setattr(direct.matching, "_INCUMBENT_COLUMNS", incumbent)
+    runs = []
+    milp = scipy.optimize.milp
+
+    def spy(*args, **kwargs):
+        res = milp(*args, **kwargs)
+        runs.append(res.status == 0)
+        return res
+
+    monkeypatch.setattr(scipy.optimize, "milp", spy)
+    rng = np.random.default_rng(8)
+    classes = [(0, 0), (1, 0), (0, 1), (-1, 1), (1, -1)]
+    fractional = again = 0
+    for trial in range(150):
+        n = int(rng.integers(2, 5))
+        cost = {(i, j, k): float(rng.uniform(0.1, 3.0)) for i in range(n) for j in range(n) for k in classes
+                if rng.random() < 0.8}
+        closed = {k: float(rng.uniform(0.5, 4.0)) for k in [(1, 0), (-1, 0), (0, 1), (0, -1)] if rng.random() < 0.7}
+        winds = tuple(int(w) for w in rng.integers(-2, 3, size=2))
+        expected = _torus_by_enumeration(cost, closed, n, winds, most=6)
+        runs.clear()
+        if not np.isfinite(expected):
+            with pytest.raises(direct.DirectError, match="no family of curves"):
+                solve_torus(cost, closed, n, n, winds)
+            continue
+        value, chosen = solve_torus(cost, closed, n, n, winds)
+        assert value == pytest.approx(expected, rel=1e-9), (trial, winds)
+        assert sum(m * (cost[k] if k[0] != "closed" else closed[k[1]]) for k, m in chosen) == pytest.approx(value)
+        fractional += bool(runs)
+        again += sum(runs) >= 2
+    assert fractional >= 30
+    assert again >= (1 if incumbent == 0 else 0)
 
 
 def test_flow_without_any_curve_is_a_direct_error():
