@@ -171,6 +171,9 @@ _ALTERNATIVE_COARSE = 0.02
 _CHORD_BULGE = 0.5
 #: ... when the coarse geodesic from there lies this many fine cells from it somewhere (see _chord_starts)
 _CHORD_AWAY = 1.0
+#: a chosen curve to a side of the domain is refined again with its end in the middle of this many strips (between
+#: vertex lines) on either side of its own (see _strip_starts)
+_STRIP_REACH = 2
 
 #: crossings whose tangents make an angle with sine below this are grazing: their domain always gets a second pass
 _GRAZING = 0.1
@@ -1140,6 +1143,92 @@ def _chord_starts(domain: Domain, metric: Metric, keys: list, held: dict, cell: 
     return starts
 
 
+def _strip_starts(domain: Domain, metric: Metric, keys: list, held: dict, ng: int) -> dict:
+    """Chosen curves to a side of the domain, their free end moved into the neighbouring strips, as coarse geodesics.
+
+    Returns ``{key: [GeodesicJob]}``.  A side of the domain where an
+    interval ends (``x_a = 0`` or ``L_a``) is cut by the vertex lines of the
+    other component into strips, one per edge of that component; along each
+    strip the distance between the two points of the deformed curves, and so
+    the metric, is smooth, and it kinks at the vertex lines.  The length of
+    a curve from a crossing point to the side, as a function of where it
+    ends, has a local minimum in strip after strip, and the grid (by its
+    bias) can pick any of the close ones.  An adversarial review (stop 34)
+    found a scene of an epitrochoid and two intervals, with the saturating
+    metric ``h(s) = 1 - exp(-s)`` (``GFamily``), 5.1e-4 (relative) above its
+    other listings when its closed component was listed from another vertex,
+    at the default ``tol`` and at ``tol=1e-5`` (24 and 66 times its
+    estimate, no warning): a curve ran to the side in the strip of the
+    crossing point (2.2473042), where in the other listings it climbed into
+    the next strip (2.2444451).  Each chosen curve with one end on such a
+    side gets starts whose end lies in the middle of the ``_STRIP_REACH``
+    strips on either side of its own, the other vertices moved along the
+    side in proportion to their arclength from the fixed end.  Those at most
+    ``_ALTERNATIVE_COARSE`` (2 %) longer than the curve as they stand go on
+    to their coarse geodesics (:func:`direct.refinement.coarse_geodesics`),
+    which are starts when they still end in another strip and beat the
+    curve's own coarse geodesic by more than its estimate.  Not for ends on
+    the diagonal (see :func:`_slid_ends`) or at a corner.
+
+    Measured (``validation/ab.py``, default ``tol``): the random interval
+    scenes and the ``circles`` family kept their times (old/new 1.00 and
+    0.99, values identical); without the filter on the moved curves' own
+    lengths the interval scenes took 1.5 times as long (a curve 0.57 long
+    whose end moved by 0.8 into the next strip: 13 times longer as it
+    stood, 0.15 s of coarse geodesics for nothing), and comparing the
+    coarse geodesics with the curve's refined length (plus 2 %) instead of
+    its own coarse geodesic refined near ties on the review's scene, 1.8
+    times its time.  The review's scene takes 5 % longer.
+    """
+    todo = []
+    for k in keys:
+        if (k[0] < ng) == (k[1] < ng):
+            continue
+        X = np.asarray(held[k].points, dtype=float)
+        if k[0] < ng:
+            X = X[::-1]  # the free end last
+        end = X[-1]
+        at = [a for a in (0, 1) if not domain.comps[a].closed
+              and min(abs(end[a]), abs(end[a] - domain.comps[a].length)) <= 1e-9 * domain.comps[a].length]
+        if len(at) != 1 or len(X) < 3:
+            continue  # on the diagonal, or at a corner
+        b = 1 - at[0]
+        comp = domain.comps[b]
+        if comp.closed:
+            lines = _vertex_params(comp, end[b] - comp.length, end[b] + comp.length)
+        else:
+            lines = np.asarray(comp.params, dtype=float)
+        i = int(np.searchsorted(lines, end[b], side="right")) - 1
+        s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(X, axis=0).T))])
+        for j in range(i - _STRIP_REACH, i + _STRIP_REACH + 1):
+            if j == i or j < 0 or j + 1 >= len(lines):
+                continue
+            Y = X.copy()
+            Y[:, b] += (0.5 * (lines[j] + lines[j + 1]) - end[b]) * s / s[-1]
+            if domain.kind in ("rect", "triangle") and not np.allclose(_project(domain, Y), Y, rtol=0.0, atol=1e-12):
+                continue  # the moved curve leaves the domain
+            todo.append((k, b, lines, i, Y[::-1] if k[0] < ng else Y))
+    if todo:  # the moved curves as they stand: those far longer than the curve lead elsewhere
+        moved = polyline_lengths(domain, metric, [Y for *_, Y in todo])
+        todo = [t for t, L in zip(todo, moved) if L <= (1.0 + _ALTERNATIVE_COARSE) * held[t[0]].length]
+    if not todo:
+        return {}
+    grounds = {k: (k[0] if k[0] < ng else None, k[1] if k[1] < ng else None) for k, *_ in todo}
+    own = list(grounds)  # the curves' own coarse geodesics, to compare like with like
+    coarse = coarse_geodesics(domain, metric, [GeodesicJob(Y, *grounds[k]) for k, *_, Y in todo]
+                              + [GeodesicJob(np.asarray(held[k].points, dtype=float), *grounds[k]) for k in own])
+    # a start's coarse geodesic must beat the curve's own by more than the curve's estimate (the 16 segments
+    # overestimate both alike: within 5e-5 relative on the review's scene, where the curve's own was 6.5e-4 over it)
+    mine = {k: length for k, (_, length) in zip(own, coarse[len(todo):])}
+    starts: dict = {}
+    for (k, b, lines, i, _), (Z, length) in zip(todo, coarse):
+        end = Z[0] if k[0] < ng else Z[-1]
+        if (int(np.searchsorted(lines, end[b], side="right")) - 1 != i  # still in another strip
+                and length < mine[k] - held[k].error_estimate):
+            starts.setdefault(k, []).append(GeodesicJob(Z, *grounds[k], coarse=True))
+    return starts
+
+
 def _crease_starts(domain: Domain, path: RefinedPath, cell: float, start_ground: int | None = None,
                    end_ground: int | None = None) -> list[GeodesicJob]:
     """Starts that move a chosen curve's stretch along a vertex line wholly to one side of it (or none).
@@ -1766,6 +1855,10 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
             # and from its reflection across its chord (_chord_starts: the other side of a narrow ring valley)
             for k, jobs in _chord_starts(domain, metric, [k for k in keys if k[0] >= ng and k[1] >= ng], held,
                                          cell).items():
+                other[k] = other.get(k, []) + jobs
+            # and a chosen curve to a side, with its end in the neighbouring strips between vertex lines
+            # (_strip_starts: a local minimum of the length in each)
+            for k, jobs in _strip_starts(domain, metric, keys, held, ng).items():
                 other[k] = other.get(k, []) + jobs
             out.update(_restarted(domain, metric, other, held, tol, atol, clearly=True))
             # and one that runs beside a vertex line, folded onto each side of it (_crease_starts; they count only

@@ -1444,3 +1444,29 @@ def test_a_closed_curve_in_uneven_reference_speeds(shape):
     assert a.settings.get("deformed_arclength") == b.settings.get("deformed_arclength") == ["c"]
     assert a.value - a.error_estimate <= b.upper_bound
     assert b.value - b.error_estimate <= a.upper_bound
+
+
+def test_a_curve_to_a_side_ends_in_the_next_strip():
+    """An adversarial review (stop 34): an epitrochoid ``T`` crossed by two intervals (5 crossings), with the
+    saturating metric ``h(s) = 1 - exp(-s)``, gave 11.121743 (estimate 2.3e-4, no warning) listed as ``L1, L0, T``
+    with ``T`` from its 11th vertex, 5.1e-4 (relative) above the ``upper_bound`` of the listing as given
+    (11.116035): a curve from a crossing point of ``L0`` and ``T`` to the end of ``L0`` ended in the strip of its
+    crossing point (2.2473042), where in the other listings it climbs into the next strip between the vertex lines
+    of ``T`` (2.2444451; ``_strip_starts``).  Both listings agree now."""
+    import os
+
+    from direct.metric import GFamily
+
+    given = direct.load_scene(os.path.join(os.path.dirname(__file__), "data", "epitrochoid_and_two_intervals.json"))
+    T, L0, L1 = given.components
+    permuted = direct.Scene((L1, L0, direct.Component(np.roll(T.reference, -10, axis=0),
+                                                      np.roll(T.deformed, -10, axis=0), closed=True, name="T")))
+    metric = GFamily(h=lambda s: 1.0 - np.exp(-s), label="1-exp(-s)")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", direct.ToleranceWarning)
+        a = direct.penalty(given, metric=metric)
+        b = direct.penalty(permuted, metric=metric)
+    assert len(a.crossings) == len(b.crossings) == 5
+    assert a.value - a.error_estimate <= b.upper_bound
+    assert b.value - b.error_estimate <= a.upper_bound
+    assert abs(a.value - b.value) <= a.error_estimate + b.error_estimate
