@@ -190,7 +190,7 @@ _HIGHS_LP = {"dual_feasibility_tolerance": 1e-10, "primal_feasibility_tolerance"
 
 
 def _two_stage(run, c: np.ndarray, infeasible: str) -> np.ndarray:
-    """Solve a linear or integer program of nonnegative costs ``c`` with HiGHS, robustly to their scale.
+    """Solve a linear program of nonnegative costs ``c`` with HiGHS, robustly to their scale (:func:`solve_flow`).
 
     HiGHS's tolerances are absolute: on raw costs of 1e-6 (a scene a thousand
     times smaller than the unit: ``G``'s lengths scale as the cube) every
