@@ -177,6 +177,8 @@ _STRIP_REACH = 2
 #: on a torus, an entry not chosen whose curve is at most this fraction longer than a chosen curve of its class is
 #: refined again from the chosen curve moved onto its ends (see _transplanted_starts)
 _TRANSPLANT = 0.01
+#: ... and whose ends lie within this fraction of the chosen curve's length (in the parameters) from its ends
+_TRANSPLANT_REACH = 0.25
 
 #: crossings whose tangents make an angle with sine below this are grazing: their domain always gets a second pass
 _GRAZING = 0.1
@@ -1251,8 +1253,9 @@ def _transplanted_starts(domain: Domain, metric: Metric, keys: list, held: dict,
     were 0.0135739 and 0.0257199.
 
     For each chosen curve and each entry of the same class (``key[2]``) not
-    chosen whose refined curve is at most ``_TRANSPLANT`` (1 %) longer, a
-    start is the chosen curve moved onto the entry's ends (``ends(key)``, in
+    chosen whose refined curve is at most ``_TRANSPLANT`` (1 %) longer and
+    whose ends lie within ``_TRANSPLANT_REACH`` (a quarter) of the curve's
+    length (in the parameters) from its ends, a start is the chosen curve moved onto the entry's ends (``ends(key)``, in
     the periodic copy nearest the chosen curve's ends), by a shift that runs
     linearly in arclength from one end's displacement to the other's.  Its
     coarse geodesic (:func:`direct.refinement.coarse_geodesics`) is a start
@@ -1268,15 +1271,19 @@ def _transplanted_starts(domain: Domain, metric: Metric, keys: list, held: dict,
         X = np.asarray(held[k].points, dtype=float)
         a, b = X[0], X[-1]
         s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(X, axis=0).T))])
-        if not s[-1] > 0:
+        length = s[-1]  # in the parameters
+        if not length > 0:
             continue
-        s = (s / s[-1])[:, None]
+        s = (s / length)[:, None]
         for o, rp in held.items():
             if o[0] == "closed" or o in keys or o[2] != k[2] or rp.length > (1.0 + _TRANSPLANT) * held[k].length:
                 continue
             a2, b2 = ends(o)
             shift = period * np.round((a - a2) / period)  # the copy of the entry's ends nearest the curve's
-            todo.append((o, X + (1.0 - s) * (a2 + shift - a) + s * (b2 + shift - b)))
+            da, db = a2 + shift - a, b2 + shift - b
+            if max(np.hypot(*da), np.hypot(*db)) > _TRANSPLANT_REACH * length:
+                continue  # ends too far apart for the curve's shape to carry over
+            todo.append((o, X + (1.0 - s) * da + s * db))
     if not todo:
         return {}
     own = list(dict.fromkeys(o for o, _ in todo))
