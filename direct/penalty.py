@@ -1205,6 +1205,8 @@ def _strip_starts(domain: Domain, metric: Metric, keys: list, held: dict, ng: in
             lines = np.asarray(comp.params, dtype=float)
         i = int(np.searchsorted(lines, end[b], side="right")) - 1
         s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(X, axis=0).T))])
+        if not s[-1] > 0:
+            continue  # a crossing point on the side itself
         for j in range(i - _STRIP_REACH, i + _STRIP_REACH + 1):
             if j == i or j < 0 or j + 1 >= len(lines):
                 continue
