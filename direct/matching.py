@@ -25,6 +25,7 @@ polynomial time by :func:`scipy.optimize.linear_sum_assignment`.
 from __future__ import annotations
 
 import itertools
+from types import SimpleNamespace
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
@@ -190,7 +191,7 @@ _HIGHS_LP = {"dual_feasibility_tolerance": 1e-10, "primal_feasibility_tolerance"
 
 
 def _two_stage(run, c: np.ndarray, infeasible: str) -> np.ndarray:
-    """Solve a linear program of nonnegative costs ``c`` with HiGHS, robustly to their scale (:func:`solve_flow`).
+    """Solve a program of nonnegative costs ``c`` with HiGHS, robustly to their scale (:func:`solve_flow`, torus).
 
     HiGHS's tolerances are absolute: on raw costs of 1e-6 (a scene a thousand
     times smaller than the unit: ``G``'s lengths scale as the cube) every
@@ -358,17 +359,9 @@ def solve_torus(
         x2 = integral(keep if np.isfinite(slack) else cols, U if U > 0 else scale)
         return x2 if x2 is not None and float(c @ x2) < U else x
 
-    # HiGHS's tolerances are absolute: first on the costs over the largest, then (as _two_stage does) on the columns
-    # no dearer than the value found, over it, so that they are relative to the value (an integral relaxation on
-    # costs over the largest came out 4.2e-5 above the optimum where the chosen curves were 1e-6 of the largest:
-    # a review)
-    top = float(c.max()) if c.max() > 0 else 1.0
-    best = program(cols, top)
-    if best is None:
-        raise DirectError(infeasible)
-    value = float(c @ best)
-    if 0.0 < value < top:
-        again = program(np.flatnonzero(c <= value), value)
-        if again is not None and float(c @ again) < value:
-            best = again
+    def run(on, scale):  # for _two_stage: HiGHS's tolerances relative to the largest cost, then to the value
+        x = program(on, scale)
+        return SimpleNamespace(status=0, x=x[on]) if x is not None else SimpleNamespace(status=2, message="infeasible")
+
+    best = _two_stage(run, c, infeasible)
     return float(c @ best), [(keys[k], int(best[k])) for k in np.flatnonzero(best)]
