@@ -1148,6 +1148,38 @@ def _chord_starts(domain: Domain, metric: Metric, keys: list, held: dict, cell: 
     return starts
 
 
+def _grounds(key: tuple, ng: int) -> tuple:
+    """``(start_ground, end_ground)`` of an entry ``(u, v)`` of a domain with ``ng`` grounds (``None``: a point)."""
+    return (key[0] if key[0] < ng else None, key[1] if key[1] < ng else None)
+
+
+def _arclength(X: np.ndarray) -> np.ndarray:
+    """Each vertex's arclength from the first along the polyline ``X`` (in the parameters)."""
+    return np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(X, axis=0).T))])
+
+
+def _beating_own(domain: Domain, metric: Metric, todo: list, held: dict, ng: int, also=None) -> dict:
+    """The coarse geodesics of starts ``todo`` (``[(key, polyline)]``) that beat their entry's own, as starts.
+
+    Returns ``{key: [GeodesicJob]}``.  The entries' own curves ``held[key]`` go
+    through :func:`direct.refinement.coarse_geodesics` in the same batch, so that
+    like is compared with like (the 16 segments overestimate both alike: within
+    5e-5 relative on the review's scene of :func:`_strip_starts`, where the
+    curve's own was 6.5e-4 over its refined length); a start must beat it by
+    more than the entry's estimate, and pass ``also(n, Z)`` (the ``n``-th start,
+    its coarse geodesic ``Z``) when given.
+    """
+    own = list(dict.fromkeys(k for k, _ in todo))
+    coarse = coarse_geodesics(domain, metric, [GeodesicJob(Y, *_grounds(k, ng)) for k, Y in todo]
+                              + [GeodesicJob(np.asarray(held[k].points, dtype=float), *_grounds(k, ng)) for k in own])
+    mine = {k: length for k, (_, length) in zip(own, coarse[len(todo):])}
+    starts: dict = {}
+    for n, ((k, _), (Z, length)) in enumerate(zip(todo, coarse)):
+        if length < mine[k] - held[k].error_estimate and (also is None or also(n, Z)):
+            starts.setdefault(k, []).append(GeodesicJob(Z, *_grounds(k, ng), coarse=True))
+    return starts
+
+
 def _strip_starts(domain: Domain, metric: Metric, keys: list, held: dict, ng: int) -> dict:
     """Chosen curves to a side of the domain, their free end moved into the neighbouring strips, as coarse geodesics.
 
@@ -1204,7 +1236,7 @@ def _strip_starts(domain: Domain, metric: Metric, keys: list, held: dict, ng: in
         else:
             lines = np.asarray(comp.params, dtype=float)
         i = int(np.searchsorted(lines, end[b], side="right")) - 1
-        s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(X, axis=0).T))])
+        s = _arclength(X)
         if not s[-1] > 0:
             continue  # a crossing point on the side itself
         for j in range(i - _STRIP_REACH, i + _STRIP_REACH + 1):
@@ -1218,22 +1250,13 @@ def _strip_starts(domain: Domain, metric: Metric, keys: list, held: dict, ng: in
     if todo:  # the moved curves as they stand: those far longer than the curve lead elsewhere
         moved = polyline_lengths(domain, metric, [Y for *_, Y in todo])
         todo = [t for t, L in zip(todo, moved) if L <= (1.0 + _ALTERNATIVE_COARSE) * held[t[0]].length]
-    if not todo:
-        return {}
-    grounds = {k: (k[0] if k[0] < ng else None, k[1] if k[1] < ng else None) for k, *_ in todo}
-    own = list(grounds)  # the curves' own coarse geodesics, to compare like with like
-    coarse = coarse_geodesics(domain, metric, [GeodesicJob(Y, *grounds[k]) for k, *_, Y in todo]
-                              + [GeodesicJob(np.asarray(held[k].points, dtype=float), *grounds[k]) for k in own])
-    # a start's coarse geodesic must beat the curve's own by more than the curve's estimate (the 16 segments
-    # overestimate both alike: within 5e-5 relative on the review's scene, where the curve's own was 6.5e-4 over it)
-    mine = {k: length for k, (_, length) in zip(own, coarse[len(todo):])}
-    starts: dict = {}
-    for (k, b, lines, i, _), (Z, length) in zip(todo, coarse):
+
+    def elsewhere(n, Z):  # the coarse geodesic still ends in another strip
+        k, b, lines, i, _ = todo[n]
         end = Z[0] if k[0] < ng else Z[-1]
-        if (int(np.searchsorted(lines, end[b], side="right")) - 1 != i  # still in another strip
-                and length < mine[k] - held[k].error_estimate):
-            starts.setdefault(k, []).append(GeodesicJob(Z, *grounds[k], coarse=True))
-    return starts
+        return int(np.searchsorted(lines, end[b], side="right")) - 1 != i
+
+    return _beating_own(domain, metric, [(k, Y) for k, *_, Y in todo], held, ng, elsewhere) if todo else {}
 
 
 def _transplanted_starts(domain: Domain, metric: Metric, keys: list, held: dict, ends) -> dict:
@@ -1272,7 +1295,7 @@ def _transplanted_starts(domain: Domain, metric: Metric, keys: list, held: dict,
             continue
         X = np.asarray(held[k].points, dtype=float)
         a, b = X[0], X[-1]
-        s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(X, axis=0).T))])
+        s = _arclength(X)
         length = s[-1]  # in the parameters
         if not length > 0:
             continue
@@ -1286,17 +1309,7 @@ def _transplanted_starts(domain: Domain, metric: Metric, keys: list, held: dict,
             if max(np.hypot(*da), np.hypot(*db)) > _TRANSPLANT_REACH * length:
                 continue  # ends too far apart for the curve's shape to carry over
             todo.append((o, X + (1.0 - s) * da + s * db))
-    if not todo:
-        return {}
-    own = list(dict.fromkeys(o for o, _ in todo))
-    coarse = coarse_geodesics(domain, metric, [GeodesicJob(Y) for _, Y in todo]
-                              + [GeodesicJob(np.asarray(held[o].points, dtype=float)) for o in own])
-    mine = {o: length for o, (_, length) in zip(own, coarse[len(todo):])}
-    starts: dict = {}
-    for (o, _), (Z, length) in zip(todo, coarse):
-        if length < mine[o] - held[o].error_estimate:
-            starts.setdefault(o, []).append(GeodesicJob(Z, coarse=True))
-    return starts
+    return _beating_own(domain, metric, todo, held, domain.n_grounds) if todo else {}
 
 
 def _crease_starts(domain: Domain, path: RefinedPath, cell: float, start_ground: int | None = None,
@@ -1943,8 +1956,7 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
             # one curve of each mirror pair, the longer (fig10: 12 starts, twice the time), its image following
             for k in sorted(keys, key=lambda k: -held[k].length):
                 if mirror is None or _mirror_key(k, held, mirror[0])[0] not in folded:
-                    folded[k] = _crease_starts(domain, held[k], cell, k[0] if k[0] < ng else None,
-                                               k[1] if k[1] < ng else None)
+                    folded[k] = _crease_starts(domain, held[k], cell, *_grounds(k, ng))
             changed = _restarted(domain, metric, folded, held, tol, atol, clearly=True)
             if mirror is not None:
                 for k, rp in list(changed.items()):
@@ -1954,7 +1966,7 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
             out.update(changed)
             # a chosen curve pinned at a corner of the cells, again from beside it (see _corner_starts)
             out.update(_leave_corners(domain, metric, keys, {**cache, **out}, lambda k, X: GeodesicJob(
-                X, start_ground=k[0] if k[0] < ng else None, end_ground=k[1] if k[1] < ng else None), tol, atol))
+                X, *_grounds(k, ng)), tol, atol))
             if settings["route_check"]:
                 out.update(_second_routes(keys, {**cache, **out}))
             if mirror is not None:
