@@ -678,8 +678,9 @@ def _settle(grid_costs: dict, solve, refine_keys, bias: float, finish=None, cach
     batch per round: :func:`direct.refinement.refine_many`).  Once the
     choice is made of refined entries, ``finish(keys, cache)`` may refine its
     entries again from more starts (``{key: RefinedPath}``, no longer than
-    before, so the choice stays optimal) and the program is solved again
-    until the choice is finished.
+    before; on a torus also entries not chosen, :func:`_transplanted_starts`,
+    which can change the choice) and the program is solved again until the
+    choice is finished.
 
     Entries not refined yet enter as optimistic lower estimates: the grid
     length over ``bias``, or over the overestimate the grid showed on the
