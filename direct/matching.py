@@ -190,7 +190,7 @@ def solve_flow(cost: np.ndarray, supply: np.ndarray) -> tuple[float, list[tuple[
 _HIGHS_LP = {"dual_feasibility_tolerance": 1e-10, "primal_feasibility_tolerance": 1e-10}
 
 
-def _two_stage(run, c: np.ndarray, infeasible: str) -> np.ndarray:
+def _two_stage(run, c: np.ndarray, infeasible: str, once: bool = False) -> np.ndarray:
     """Solve a program of nonnegative costs ``c`` with HiGHS, robustly to their scale (:func:`solve_flow`, torus).
 
     HiGHS's tolerances are absolute: on raw costs of 1e-6 (a scene a thousand
@@ -204,7 +204,8 @@ def _two_stage(run, c: np.ndarray, infeasible: str) -> np.ndarray:
     column dearer than ``V`` can be in an optimal solution (the costs are
     nonnegative), and the second solve keeps the others, scaled by ``V``:
     every tolerance is then relative to the value itself.  The better of
-    the two solutions is returned.
+    the two solutions is returned.  With ``once=True`` only the first solve
+    runs (a guess, :func:`solve_torus`'s ``guess``).
     """
     def solve(cols, scale):
         res = run(cols, scale)
@@ -217,7 +218,7 @@ def _two_stage(run, c: np.ndarray, infeasible: str) -> np.ndarray:
     top = float(c.max()) if len(c) else 0.0
     x = solve(np.arange(len(c)), top if top > 0 else 1.0)
     value = float(c @ x)
-    if not 0.0 < value < top:
+    if once or not 0.0 < value < top:
         return x
     cols = np.flatnonzero(c <= value)  # feasible: x uses none of the others
     try:
@@ -232,7 +233,7 @@ _INCUMBENT_COLUMNS = 4
 
 
 def solve_torus(
-    cost: dict, closed: dict, npos: int, nneg: int, winds: tuple[int, int]
+    cost: dict, closed: dict, npos: int, nneg: int, winds: tuple[int, int], guess: bool = False
 ) -> tuple[float, list[tuple]]:
     """Program (34) on a torus ``S^1 x S^1``: a matching with prescribed homology.
 
@@ -256,6 +257,12 @@ def solve_torus(
         Numbers of positive and negative points (equal on a torus).
     winds : tuple of int
         Prescribed total seam crossings ``(K1, K2)``.
+    guess : bool, optional
+        Solve once, with HiGHS's tolerances relative to the largest cost
+        rather than to the value (the first of :func:`_two_stage`'s two
+        passes): a family optimal to about ``1e-6`` of the largest cost, for
+        guessing which entries the program will use
+        (``direct.penalty._foreseen``), not for its value.
 
     Returns
     -------
@@ -363,5 +370,5 @@ def solve_torus(
         x = program(on, scale)
         return SimpleNamespace(status=0, x=x[on]) if x is not None else SimpleNamespace(status=2, message="infeasible")
 
-    best = _two_stage(run, c, infeasible)
+    best = _two_stage(run, c, infeasible, once=guess)
     return float(c @ best), [(keys[k], int(best[k])) for k in np.flatnonzero(best)]

@@ -671,7 +671,7 @@ def boundary_conditions(domain: Domain) -> dict[str, Any]:
 
 
 def _settle(grid_costs: dict, solve, refine_keys, bias: float, finish=None, cache: dict | None = None,
-            finished: set | None = None, complete=None):
+            finished: set | None = None, complete=None, foresee=None):
     """Solve, refine the chosen curves, re-solve with refined lengths until the choice is refined.
 
     ``refine_keys(keys)`` refines the curves of several entries at once (one
@@ -691,7 +691,9 @@ def _settle(grid_costs: dict, solve, refine_keys, bias: float, finish=None, cach
     They are estimates drawn from the curves refined so far, not proofs (see
     :func:`_grid_lower_bounds` for one that failed, harmlessly).  From the second round on,
     the entries the next solves would ask for are refined in the same batch
-    (:func:`_foreseen`).  ``cache`` and ``finished`` may bring entries
+    (:func:`_foreseen`, through ``foresee(costs)``, by default ``solve``; on
+    a torus one pass of the program instead of
+    :func:`direct.matching._two_stage`'s two).  ``cache`` and ``finished`` may bring entries
     refined, and finished, already.
 
     ``grid_costs`` may hold lower bounds for entries not searched yet (the
@@ -714,7 +716,7 @@ def _settle(grid_costs: dict, solve, refine_keys, bias: float, finish=None, cach
         missing = [k for k, _ in chosen if k not in cache]
         if missing:
             if cache:
-                missing = _foreseen(missing, costs, cache, solve)
+                missing = _foreseen(missing, costs, cache, solve if foresee is None else foresee)
             if complete is not None and complete(missing):
                 continue
             cache.update(zip(missing, refine_keys(missing)))
@@ -1824,6 +1826,12 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
             closed = {k[1]: v for k, v in costs.items() if k[0] == "closed"}
             return solve_torus(paths, closed, len(pos), len(neg), K)
 
+        def foresee(costs):  # _foreseen's trial solves: one pass of the program each (half of 53 s of 200 s of
+            # integer programs on the star and ellipse of validation/star_ellipse.py, their relaxations fractional)
+            paths = {k: v for k, v in costs.items() if k[0] != "closed"}
+            closed = {k[1]: v for k, v in costs.items() if k[0] == "closed"}
+            return solve_torus(paths, closed, len(pos), len(neg), K, guess=True)
+
         def polyline(key):
             if key[0] == "closed":
                 return loops[key[1]][0][1]
@@ -1864,6 +1872,7 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
             return int(neg[key[1]]), int(pos[key[0]])
     else:
         T, route = grid_distances(graph, backend, bound=_SEARCH_BOUND if backend == "scipy" else None)
+        foresee = None  # _foreseen solves the program itself
         nt = ng + len(domain.points)
         supply = np.zeros(nt, dtype=int)
         supply[ng + neg] = 1
@@ -2066,7 +2075,8 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
     atol = 0.1 * tol * grid_value / max(1, len(domain.points))
     loose: list = []
     if do_refine:
-        value, chosen, cache = _settle(grid_costs, solve, refine_keys, bias, finish, complete=complete)
+        value, chosen, cache = _settle(grid_costs, solve, refine_keys, bias, finish, complete=complete,
+                                       foresee=foresee)
         # the absolute tolerance (a curve much shorter than the others needs no relative accuracy of its own) came
         # from the grid's value, which overestimates J many times over where the grid cannot follow a narrow valley
         # (a hairpin of the deformed curve: 33 times at 128 cells on the built-in scene hairpin; validation/
@@ -2084,7 +2094,8 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
             shifted.difference_update(stale)  # and shifted again (an adversarial review)
             value, chosen, cache = _settle(grid_costs, solve, refine_keys, bias, finish,
                                            cache={k: v for k, v in cache.items() if k not in stale},
-                                           finished={k for k, _ in chosen if k not in stale}, complete=complete)
+                                           finished={k for k, _ in chosen if k not in stale}, complete=complete,
+                                           foresee=foresee)
     else:
         value, chosen, cache = grid_value, grid_chosen, {}
     curves = []

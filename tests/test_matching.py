@@ -134,7 +134,8 @@ def _torus_by_enumeration(cost, closed, n, winds, most=3):
 def test_torus_program_against_enumeration(monkeypatch, incumbent):
     """``solve_torus`` (relaxation, reduced costs, integer program on the columns left) against enumeration on
     random programs whose relaxation is fractional in about a third of them; with ``incumbent=0`` the first
-    integer program has the relaxation's support only, and a few incumbents leave columns to solve over again."""
+    integer program has the relaxation's support only, and a few incumbents leave columns to solve over again.
+    ``guess=True`` (one pass) gives a feasible family within HiGHS's tolerance of the largest cost."""
     import scipy.optimize
 
     import direct.matching
@@ -169,6 +170,11 @@ def test_torus_program_against_enumeration(monkeypatch, incumbent):
         assert sum(m * (cost[k] if k[0] != "closed" else closed[k[1]]) for k, m in chosen) == pytest.approx(value)
         fractional += bool(runs)
         again += sum(runs) >= 2
+        # one pass (what _foreseen guesses from): a feasible family, optimal to HiGHS's tolerance on the largest cost
+        guess, chosen = solve_torus(cost, closed, n, n, winds, guess=True)
+        assert guess == pytest.approx(sum(m * (cost[k] if k[0] != "closed" else closed[k[1]]) for k, m in chosen))
+        top = max(max(cost.values()), max(closed.values(), default=0.0))
+        assert expected * (1 - 1e-12) <= guess <= expected + 1e-5 * top
     assert fractional >= 30
     assert again >= (1 if incumbent == 0 else 0)
 
