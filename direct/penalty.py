@@ -928,34 +928,6 @@ def _restarted(domain: Domain, metric: Metric, starts: dict, held: dict, tol: fl
     return out
 
 
-def _screened(domain: Domain, metric: Metric, starts: dict, held: dict, tol: float, atol: float) -> dict:
-    """The starts that one level of refinement leaves clearly shorter than the curves they could replace.
-
-    Starts made from a refined curve (:func:`_crease_starts`) come at its
-    resolution, a thousand vertices or more at small ``tol``: one adversarial
-    review's limaçon, ellipse and line (13 crossings) took over 15 minutes
-    at ``tol=1e-5``, 22 folded starts of one winding curve of 1,861 vertices.
-    Each is settled at that resolution once (``refine_many(..., levels=1)``),
-    where its exact length compares with the held curve's ``upper``, the
-    exact length of its own last polyline.  A start is refined on, from
-    where it settled, only when it is shorter than ``upper`` by half the
-    held estimate: with ``clearly=True`` (:func:`_restarted`) the result
-    counts only when it beats the held curve by its estimate.
-    """
-    starts = {k: jobs for k, jobs in starts.items() if jobs}
-    if not starts:
-        return {}
-    settled = iter(refine_many(domain, metric, [j for jobs in starts.values() for j in jobs], tol=tol, atol=atol,
-                               levels=1))
-    out: dict = {}
-    for k, jobs in starts.items():
-        bar = held[k].upper - 0.5 * held[k].error_estimate
-        for job, rp in zip(jobs, [next(settled) for _ in jobs]):
-            if rp.upper < bar:
-                out.setdefault(k, []).append(replace(job, route=rp.points, coarse=True))
-    return out
-
-
 def _leave_corners(domain: Domain, metric: Metric, keys: list, held: dict, job_of, tol: float,
                    atol: float) -> dict:
     """Refine the chosen curves held at corners of the cells again from beside them, straight ones from bent starts.
@@ -1854,7 +1826,6 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
             # and one that runs beside a vertex line, folded onto each side of it (_crease_starts)
             held = {**cache, **out}
             folded = {k: _crease_starts(domain, held[k], cell) for k in keys if k[0] != "closed"}
-            folded = _screened(domain, metric, folded, held, tol, atol)
             out.update(_restarted(domain, metric, folded, held, tol, atol, clearly=True))
             # the entries a chosen curve competes with, from its route moved onto their ends (_transplanted_starts:
             # the program is solved again)
@@ -1996,7 +1967,6 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
             for k in sorted(keys, key=lambda k: -held[k].length):
                 if mirror is None or _mirror_key(k, held, mirror[0])[0] not in folded:
                     folded[k] = _crease_starts(domain, held[k], cell, *_grounds(k, ng))
-            folded = _screened(domain, metric, folded, held, tol, atol)
             changed = _restarted(domain, metric, folded, held, tol, atol, clearly=True)
             if mirror is not None:
                 for k, rp in list(changed.items()):

@@ -1375,10 +1375,6 @@ def _settle(domain: Domain, metric: Metric, curves: list[_Curve], scale: float, 
             break
 
 
-#: a curve whose polyline has this many times ``max_segments`` segments stops at its third level (refine_many)
-_FINE = 4
-
-
 def refine_many(
     domain: Domain,
     metric: Metric,
@@ -1388,7 +1384,6 @@ def refine_many(
     start: int = 8,
     max_segments: int = 512,
     max_rounds: int = 8,
-    levels: int | None = None,
 ) -> list[RefinedPath]:
     """Refine grid routes into geodesics: minimize their exact lengths, multilevel, all curves together.
 
@@ -1410,19 +1405,15 @@ def refine_many(
         from ``start`` to ``max_segments``, each curve from the vertices of
         its route (a coarse geodesic of 16 segments, most of the time, so
         its last level has about ``2 max_segments``, plus a vertex where it
-        crosses a vertex line).  A curve whose
-        polyline has ``_FINE * max_segments`` segments or more (a start made
-        from a refined curve) stops at its third level.
+        crosses a vertex line).  A curve whose route already has
+        ``max_segments`` segments or more (a start made from a refined
+        curve, kept where its coarse geodesic is longer) stops at its third
+        level.
     max_rounds : int
         Rounds of normal moves per level (the normals recomputed each time);
         a level stops earlier when what further rounds could still gain,
         extrapolated from the ratio of successive gains, is below
         ``tol / 100`` of the length.
-    levels : int, optional
-        Stop every curve after this many levels, its ``length`` and ``upper``
-        the exact length of its last polyline, its ``error_estimate``
-        infinite: a screen of starts, to compare with the curves they could
-        replace at the same resolution (``direct.penalty._screened``).
 
     Returns
     -------
@@ -1450,9 +1441,12 @@ def refine_many(
             if L <= Lr:
                 routes[k] = X
     curves = []
+    fine = set()  # the curves whose route is as fine as a last level already
     for job, route in zip(jobs, routes):
         X, modes = _initial_polyline(domain, route, start, job.start_ground, job.end_ground, job.closed)
         curves.append(_Curve(job, X, modes))
+        if len(route) - 1 >= max_segments:
+            fine.add(id(curves[-1]))
     live = list(curves)
     n = start
     while live:
@@ -1467,9 +1461,6 @@ def refine_many(
             Ln = c.length  # the length of the last round's polyline
             c.history.append(Ln)
             h = c.history
-            if levels is not None and len(h) >= levels:
-                c.result = RefinedPath(c.X, Ln, Ln, np.inf, len(c.X) - 1)
-                continue
             if len(h) >= 2:
                 # Richardson: with an error ~ n^-2, L_n - L_inf ~ (L_{n/2} - L_n) / 3.  The estimate is the whole
                 # last difference, three times that correction: the first levels are not always asymptotic.
@@ -1490,11 +1481,10 @@ def refine_many(
                 estimate += _remaining_gain(c.gains)
                 # three levels at least: the change between the first two is often not yet in the asymptotic
                 # range (measured: 3.8e-3 off at tol 1e-3 after two), and the third checks it through the ratio
-                # a start that came as a fine polyline (a refined curve moved or folded: _crease_starts) doubles
-                # from its own size: it stops at three levels once beyond _FINE times max_segments (one of the
-                # limaçon and ellipse's folded starts, 1,861 vertices, went on to 119,874 in 187 s)
-                fine = len(c.X) - 1 >= _FINE * max_segments and len(h) >= 3
-                if (estimate <= max(tol * abs(h[-1]), atol) and len(h) >= 3) or n >= max_segments or fine:
+                # a route as fine as a last level (a refined curve folded or moved: _crease_starts) doubles from
+                # its own size, so it stops at its third level (one of the limaçon and ellipse's folded starts,
+                # 1,861 vertices, went on through every level to 119,874 in 187 s: validation/folded_starts.py)
+                if ((estimate <= max(tol * abs(h[-1]), atol) or id(c) in fine) and len(h) >= 3) or n >= max_segments:
                     # the extrapolation stays within [0, Ln]: Ln is the exact length of a curve of the class
                     c.result = RefinedPath(c.X, min(max(h[-1] - diff / 3.0, 0.0), Ln), Ln, estimate, len(c.X) - 1)
                     continue
