@@ -83,6 +83,7 @@ import time
 import warnings
 from dataclasses import dataclass, field, replace
 from decimal import Decimal
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -1793,16 +1794,14 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
                 grid_costs[("closed", c)] = found[0][0]
             return True
 
-        def solve(costs):
+        def solve(costs, guess=False):
             paths = {k: v for k, v in costs.items() if k[0] != "closed"}
             closed = {k[1]: v for k, v in costs.items() if k[0] == "closed"}
-            return solve_torus(paths, closed, len(pos), len(neg), K)
+            return solve_torus(paths, closed, len(pos), len(neg), K, guess=guess)
 
-        def foresee(costs):  # _foreseen's trial solves: one pass of the program each (half of 53 s of 200 s of
-            # integer programs on the star and ellipse of validation/star_ellipse.py, their relaxations fractional)
-            paths = {k: v for k, v in costs.items() if k[0] != "closed"}
-            closed = {k[1]: v for k, v in costs.items() if k[0] == "closed"}
-            return solve_torus(paths, closed, len(pos), len(neg), K, guess=True)
+        # _foreseen's trial solves: one pass of the program each (half of 53 s of 200 s of integer programs on the
+        # star and ellipse of validation/star_ellipse.py, their relaxations fractional near ties)
+        foresee = partial(solve, guess=True)
 
         def polyline(key):
             if key[0] == "closed":
@@ -1886,8 +1885,7 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
             jobs, owner, ranked = [], [], []
             for n, (u, v) in enumerate(keys):
                 if (u < ng) == (v < ng):  # point to point, or boundary to boundary
-                    jobs.append(GeodesicJob(route(u, v), start_ground=u if u < ng else None,
-                                            end_ground=v if v < ng else None))
+                    jobs.append(GeodesicJob(route(u, v), *_grounds((u, v), ng)))
                     owner.append(n)
                     continue
                 a, g = (u, v) if v < ng else (v, u)
@@ -2006,8 +2004,7 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
                 if not np.isfinite(T2[(u, v) if u >= ng or v < ng else (v, u)]):  # beyond reach on the second grid
                     continue
                 if (u < ng) == (v < ng):
-                    ranked.append((k, GeodesicJob(route2(u, v), start_ground=u if u < ng else None,
-                                                  end_ground=v if v < ng else None)))
+                    ranked.append((k, GeodesicJob(route2(u, v), *_grounds((u, v), ng))))
                     continue
                 a, g = (u, v) if v < ng else (v, u)
                 ranked.extend((k, GeodesicJob(p, end_ground=g)) for p in route2.candidates(a, g, 1.0))

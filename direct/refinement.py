@@ -1303,8 +1303,9 @@ def coarse_geodesic(
 class _Curve:
     """The state of one curve during :func:`refine_many`."""
 
-    def __init__(self, job: GeodesicJob, X, modes):
+    def __init__(self, job: GeodesicJob, X, modes, fine: bool = False):
         self.job, self.X, self.modes = job, X, modes
+        self.fine = fine  # its route is as fine as a last level already: it stops at its third level
         self.history: list[float] = []  # the length reached at each level
         self.length = 0.0  # the length after the latest round of the current level
         self.gains: list[float] = []  # what each round of the current level gained (see _remaining_gain)
@@ -1441,12 +1442,9 @@ def refine_many(
             if L <= Lr:
                 routes[k] = X
     curves = []
-    fine = set()  # the curves whose route is as fine as a last level already
     for job, route in zip(jobs, routes):
         X, modes = _initial_polyline(domain, route, start, job.start_ground, job.end_ground, job.closed)
-        curves.append(_Curve(job, X, modes))
-        if len(route) - 1 >= max_segments:
-            fine.add(id(curves[-1]))
+        curves.append(_Curve(job, X, modes, fine=len(route) - 1 >= max_segments))
     live = list(curves)
     n = start
     while live:
@@ -1484,7 +1482,7 @@ def refine_many(
                 # a route as fine as a last level (a refined curve folded or moved: _crease_starts) doubles from
                 # its own size, so it stops at its third level (one of the limaçon and ellipse's folded starts,
                 # 1,861 vertices, went on through every level to 119,874 in 187 s: validation/folded_starts.py)
-                if ((estimate <= max(tol * abs(h[-1]), atol) or id(c) in fine) and len(h) >= 3) or n >= max_segments:
+                if ((estimate <= max(tol * abs(h[-1]), atol) or c.fine) and len(h) >= 3) or n >= max_segments:
                     # the extrapolation stays within [0, Ln]: Ln is the exact length of a curve of the class
                     c.result = RefinedPath(c.X, min(max(h[-1] - diff / 3.0, 0.0), Ln), Ln, estimate, len(c.X) - 1)
                     continue
