@@ -451,6 +451,32 @@ def test_grid_lower_bounds_stay_below_every_refined_entry(pairs):
     assert np.all(out >= 0)
 
 
+def _curl() -> direct.Scene:
+    """The adversarial review's curl (stop 36): one open polyline crossing itself twice, both crossings of sign -1,
+    its reference a straight line traversed at speeds 1 to 8."""
+    deformed = np.array([[0, 0], [2, 0], [2, 1], [1, 1], [1, -1], [3, -1], [3, 0.5], [2.5, 0.5], [2.5, -1.5],
+                         [4, -1.5]], dtype=float)
+    speeds = np.array([1, 3, 1, 5, 2, 1, 8, 1, 2], dtype=float)
+    x = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(deformed, axis=0), axis=1) / speeds)])
+    return direct.Scene((direct.Component(np.column_stack([x, 0 * x]), deformed, name="curl"),))
+
+
+@pytest.mark.parametrize("angle,shift,scale", [(0.0, (0, 0), 1.0), (2.1, (-7, 1), 0.6)])
+def test_a_curve_to_the_diagonal_ends_at_the_next_vertex(angle, shift, scale):
+    """The curl's curve from its second crossing point to the diagonal ended at vertex 7 of the grid's route, where
+    the next one, vertex 6, is 5.0e-5 (relative) shorter: 3.2e-5 above J at ``tol=1e-5``, 15 times its estimate, with
+    no warning (``_strip_starts``, which had left the diagonal out). The curves the run returns make an admissible
+    family, so the exact length of another grid's (``upper_bound``) is at least ``J``: neither run may claim a value
+    whose estimate cannot reach below the other's."""
+    scene = rigid(_curl(), angle, shift, scale)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", direct.ToleranceWarning)
+        runs = [direct.penalty(scene, tol=1e-5, resolution=n) for n in (128, 256)]
+    for a, b in (runs, runs[::-1]):
+        assert a.value - a.error_estimate <= b.upper_bound * (1 + 1e-12)
+    assert runs[0].value == pytest.approx(runs[1].value, rel=1e-5)
+
+
 @pytest.mark.parametrize("seed", [113, 136])
 def test_rough_refinement_first_changes_nothing_but_the_work(monkeypatch, seed):
     """Below ``tol = _ROUGH_TOL / 10`` the entries a later round of ``_settle`` asks for are refined at
