@@ -712,12 +712,21 @@ def _settle(grid_costs: dict, solve, refine_keys, bias: float, finish=None, cach
     :func:`direct.matching._two_stage`'s two).  ``cache`` and ``finished`` may bring entries
     refined, and finished, already.
 
+    ``finish(keys, cache, promote)`` gets a ``promote(wanted)`` that refines
+    in full, into ``cache``, the roughly refined entries (below) for which
+    ``wanted(key, rough_path)`` holds: its checks of entries not chosen (the
+    shifted starts of curves between the grounds, the slid ends, the
+    transplanted starts of a torus, the mirror images) look at the refined
+    entries, and must see those the refinement of every entry in full would
+    have given them (a code review of the first version).
+
     ``rough(keys)``, where given, refines entries at the looser
     ``_ROUGH_TOL``: after the first batch (refined in full), an entry a solve
     asks for is refined roughly, and enters the next solves at its rough
     length less ``_ROUGH_MARGIN`` times its estimate plus ``_ROUGH_TOL`` of
     it (:func:`_rough_cost`), an optimistic estimate of its full length; only
-    an entry asked for again at that cost is refined in full.  Most entries
+    an entry asked for again at that cost (by a solve, or a trial solve of
+    :func:`_foreseen`) is refined in full.  Most entries
     that a loose lower bound brings in are long curves that lose the choice:
     on the star and wobbly circle (``validation/star_wobbly_circle.json``) at
     ``tol=1e-5`` the rough refinement costs a seventh of the full one.
@@ -760,9 +769,16 @@ def _settle(grid_costs: dict, solve, refine_keys, bias: float, finish=None, cach
         todo = [k for k, _ in chosen if k not in finished] if finish is not None else []
         if not todo:
             return value, chosen, cache
-        cache.update(finish(todo, cache))
+        cache.update(finish(todo, cache, partial(_promote, cache, roughly, refine_keys)))
         finished.update(todo)
     raise DirectError("the choice of refined geodesics did not settle")  # pragma: no cover
+
+
+def _promote(cache: dict, roughly: dict, refine_keys, wanted) -> None:
+    """Refine in full, into ``cache``, the entries of ``roughly`` not in it for which ``wanted(key, rough)`` holds."""
+    keys = [k for k, rp in roughly.items() if k not in cache and wanted(k, rp)]
+    if keys:
+        cache.update(zip(keys, refine_keys(keys)))
 
 
 def _tolerances(tol: float, atol: float, rough: bool) -> tuple[float, float]:
@@ -774,11 +790,12 @@ def _rough_cost(rp: RefinedPath) -> float:
     """An entry's optimistic length from its rough refinement (at ``_ROUGH_TOL``; see :func:`_settle`).
 
     The rough length less ``_ROUGH_MARGIN`` times its estimate plus
-    ``_ROUGH_TOL`` of it, at least 0.  The full refinement continues the
-    rough one's levels and can go lower than its estimate says (crossing
-    vertex lines at finer kinks): on the star and wobbly circle by up to 0.39
-    of the estimate plus ``_ROUGH_TOL`` of the length, 3.8 times the estimate
-    alone.
+    ``_ROUGH_TOL`` of it, at least 0.  The full refinement starts again
+    from the grid's route, runs its rounds to the finer tolerance and goes on
+    through more levels, and can end lower than the rough estimate says
+    (crossing vertex lines at finer kinks): on the star and wobbly circle by
+    up to 0.39 of the estimate plus ``_ROUGH_TOL`` of the length, 3.8 times
+    the estimate alone.  A measured margin, not a bound.
     """
     return max(rp.length - _ROUGH_MARGIN * (rp.error_estimate + _ROUGH_TOL * rp.length), 0.0)
 
@@ -1906,7 +1923,7 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
             jobs = [GeodesicJob(np.asarray(polyline(k), dtype=float), closed=k[0] == "closed") for k in keys]
             return refine_many(domain, metric, jobs, *_tolerances(tol, atol, rough))
 
-        def finish(keys, cache):
+        def finish(keys, cache, promote):
             # a chosen closed curve again from the grid's other closed curves of its class (closed_curve_distances)
             starts = {k: [GeodesicJob(np.asarray(p, dtype=float), closed=True) for _, p in loops[k[1]][1:]]
                       for k in keys if k[0] == "closed"}
@@ -1920,7 +1937,13 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
             folded = {k: _crease_starts(domain, held[k], cell) for k in keys if k[0] != "closed"}
             out.update(_restarted(domain, metric, folded, held, tol, atol, clearly=True))
             # the entries a chosen curve competes with, from its route moved onto their ends (_transplanted_starts:
-            # the program is solved again)
+            # the program is solved again); those refined roughly that may be among them, in full first
+            held = {**cache, **out}
+            bar: dict = {}
+            for k in keys:
+                if k[0] != "closed":
+                    bar[k[2]] = max(bar.get(k[2], 0.0), (1.0 + _TRANSPLANT) * held[k].length)
+            promote(lambda o, rp: o[0] != "closed" and _rough_cost(rp) <= bar.get(o[2], -1.0))
             held = {**cache, **out}
             moved = _transplanted_starts(domain, metric, keys, held, lambda k: np.asarray(polyline(k))[[0, -1]])
             out.update(_restarted(domain, metric, moved, held, tol, atol, clearly=True))
@@ -2007,7 +2030,7 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
                     out[n] = out[n].reversed()
             return out
 
-        def finish(keys, cache):
+        def finish(keys, cache, promote):
             # a chosen curve with both ends free around a circle: rotations along the circle nearly preserve its
             # length, so it is refined again from its route shifted by fractions of an edge (see _family_shifts)
             starts: dict = {}
@@ -2016,6 +2039,7 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
                 # above the family's minimum and lose the choice to curves it would beat (the star polygon of 9
                 # vertices under a merge rule tried at stop 29: 11.78 from its route, 11.5667 from the shifted
                 # starts; two curves to the diagonal at 5.84 and 5.835 were chosen instead, 4.8e-3 relative above J)
+                promote(lambda k, _: k[0] < ng and k[1] < ng)  # those refined roughly, in full first
                 grounded = [k for k in cache if k[0] < ng and k[1] < ng and k not in shifted]
                 shifted.update(grounded)
                 starts = {k: [GeodesicJob(route(*k) + shift, start_ground=k[0], end_ground=k[1])
@@ -2025,6 +2049,7 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
                 # the chosen curves to the diagonal, and those of the points that a chosen curve joins (a shorter
                 # one to the diagonal can change the choice: the program is solved again)
                 joined = {w for u, v in keys if u >= ng and v >= ng for w in (u, v)}
+                promote(lambda k, _: k not in slid and ((k[0] < ng) != (k[1] < ng)) and (k in keys or max(k) in joined))
                 near = [k for k in cache if k not in slid and ((k[0] < ng) != (k[1] < ng))
                         and (k in keys or max(k) in joined)]
                 slid.update(near)
@@ -2071,6 +2096,8 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
             if settings["route_check"]:
                 out.update(_second_routes(keys, {**cache, **out}))
             if mirror is not None:
+                images = {(mirror[0][u], mirror[0][v]) for u, v in keys}  # refined roughly: in full first
+                promote(lambda k, _: k in images or k[::-1] in images)
                 out.update(_mirror_pairs(keys, {**cache, **out}, *mirror))
             return out
 

@@ -347,6 +347,46 @@ def test_foreseen_entries_batch_the_rounds_without_changing_the_choice(monkeypat
     assert len(nb_fast) <= len(nb_slow) / 3
 
 
+def test_rough_refinement_hides_no_entry_from_the_checks_of_entries_not_chosen(monkeypatch):
+    """Below ``tol=1e-4`` entries are refined roughly first (``_settle``); the checks of ``finish`` that look at
+    entries not chosen (the shifted starts of curves between the grounds, the slid ends on the annulus, ...) must
+    still see every entry they would see with every entry refined in full. A code review of the first version found
+    the star polygon {7/2} at ``tol=1e-5`` giving shifted starts to no curve between the grounds (1 in full) and
+    sliding 14 curves to the diagonal (27 in full)."""
+    import sys
+
+    P = sys.modules["direct.penalty"]
+    t = 2 * np.pi * np.arange(7) / 7
+    scene = direct.Scene((direct.Component(np.column_stack([np.cos(t), np.sin(t)]),
+                                           np.column_stack([np.cos(2 * t), np.sin(2 * t)]), closed=True, name="star"),))
+    more, slid = P._more_starts, P._slid_ends
+    seen: dict = {}
+
+    def more_spy(domain, metric, starts, cache, *args, **kwargs):
+        seen["shifted"].update(k for k in starts if k[0] < domain.n_grounds and k[1] < domain.n_grounds)
+        return more(domain, metric, starts, cache, *args, **kwargs)
+
+    def slid_spy(domain, metric, keys, *args, **kwargs):
+        seen["slid"].update(keys)
+        return slid(domain, metric, keys, *args, **kwargs)
+
+    monkeypatch.setattr(P, "_more_starts", more_spy)
+    monkeypatch.setattr(P, "_slid_ends", slid_spy)
+    runs = {}
+    for rough in (True, False):
+        if not rough:
+            monkeypatch.setattr(P, "_ROUGH_TOL", 1e-30)  # never below tol / 10: every entry in full
+        seen.update(shifted=set(), slid=set())
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", direct.ToleranceWarning)
+            res = direct.penalty(scene, tol=1e-5)
+        runs[rough] = res, {k: set(v) for k, v in seen.items()}
+    (fast, fast_seen), (full, full_seen) = runs[True], runs[False]
+    assert full_seen["shifted"] and full_seen["slid"]
+    assert fast_seen == full_seen
+    assert (fast.value, fast.error_estimate) == (full.value, full.error_estimate)
+
+
 def test_hairpin_short_curves_are_refined_to_the_refined_values_tolerance():
     """The built-in ``hairpin`` (an octagon folded into a thin loop, two segments at 0.4 degrees): the metric has
     a valley much narrower than a grid cell and the grid's value is 33 times J at 128 cells. The absolute
