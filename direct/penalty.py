@@ -2039,8 +2039,11 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
                 # above the family's minimum and lose the choice to curves it would beat (the star polygon of 9
                 # vertices under a merge rule tried at stop 29: 11.78 from its route, 11.5667 from the shifted
                 # starts; two curves to the diagonal at 5.84 and 5.835 were chosen instead, 4.8e-3 relative above J)
-                promote(lambda k, _: k[0] < ng and k[1] < ng)  # those refined roughly, in full first
-                grounded = [k for k in cache if k[0] < ng and k[1] < ng and k not in shifted]
+                def between_grounds(k, *_):
+                    return k[0] < ng and k[1] < ng
+
+                promote(between_grounds)  # those refined roughly, in full first
+                grounded = [k for k in cache if between_grounds(k) and k not in shifted]
                 shifted.update(grounded)
                 starts = {k: [GeodesicJob(route(*k) + shift, start_ground=k[0], end_ground=k[1])
                               for shift in _family_shifts(domain)] for k in grounded}
@@ -2049,9 +2052,11 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
                 # the chosen curves to the diagonal, and those of the points that a chosen curve joins (a shorter
                 # one to the diagonal can change the choice: the program is solved again)
                 joined = {w for u, v in keys if u >= ng and v >= ng for w in (u, v)}
-                promote(lambda k, _: k not in slid and ((k[0] < ng) != (k[1] < ng)) and (k in keys or max(k) in joined))
-                near = [k for k in cache if k not in slid and ((k[0] < ng) != (k[1] < ng))
-                        and (k in keys or max(k) in joined)]
+                def to_slide(k, *_):
+                    return k not in slid and ((k[0] < ng) != (k[1] < ng)) and (k in keys or max(k) in joined)
+
+                promote(to_slide)  # those refined roughly, in full first
+                near = [k for k in cache if to_slide(k)]
                 slid.update(near)
                 out.update(_slid_ends(domain, metric, near, {**cache, **out}, grid_costs, tol, atol))
             # a chosen curve from a crossing point to the boundary, a few cells long: straight starts (_straight_starts)
