@@ -177,10 +177,18 @@ _CHORD_AWAY = 1.0
 _STRIP_REACH = 2
 #: ... an end within this fraction of the narrower strip beside it from a vertex line is at that line
 _STRIP_SNAP = 1e-3
-#: ... and its starts beside that line go on when they are at most this fraction longer than the curve as they stand
-#: (the review's curl: 2.0 % and 3.8 %; on interval seeds 183 and 263 of validation/default_tol.py they were 2.5 to
-#: 1e9 times longer, and their coarse geodesics made the 175 scenes 1.23 times slower at tol=1e-3 without this)
-_STRIP_NEAR = 0.1
+#: ... and its starts beside that line (and the mirror start in its own strip, _OWN_STRIP) go on when they are at most
+#: this factor to the power of the metric's order (at least 1) times as long as the curve as they stand: a distortion
+#: of |r| by at most that factor, whatever the power (2.56 for G, 6.6 for g with p = 2, 17 with p = 3). The stop-36
+#: review's curl (G) stood 1.02 and 1.04 times as long; the stop-37 review's limacon with g, where |r|^(2p) is steep
+#: near the diagonal, 1.5 (p = 2) and 14 (p = 3); on interval seeds 183 and 263 of validation/default_tol.py such
+#: starts were 2.5 to 1e9 times as long, and with no limit at all their coarse geodesics made the 175 scenes 1.23
+#: times slower at tol=1e-3 (20 times for every metric: about 1.15 times, validation/same_values.py)
+_STRIP_NEAR = 1.6
+#: a chosen curve whose end lies at least half this fraction of its strip from the strip's middle also gets a start
+#: with its end at the mirror position in the strip (see _strip_starts); its coarse geodesic counts when it ends
+#: farther than half this fraction of the strip from where the curve ends
+_OWN_STRIP = 0.25
 #: on a torus, an entry not chosen whose curve is at most this fraction longer than a chosen curve of its class is
 #: refined again from the chosen curve moved onto its ends (see _transplanted_starts)
 _TRANSPLANT = 0.01
@@ -1286,15 +1294,31 @@ def _strip_starts(domain: Domain, metric: Metric, keys: list, held: dict, ng: in
     vertex line (within ``_STRIP_SNAP`` of the narrower strip beside it)
     sits on a kink of the length, which can hold a minimum; the strips on
     both sides of it are its own, and it also gets starts in their middles
-    and at the next vertex lines, kept when they are at most ``_STRIP_NEAR``
-    (10 %) longer than the curve as they stand (a short move, but a crude
-    shape).  An adversarial review (stop
+    and at the next vertex lines, kept when they are not too long as they
+    stand (a short move, but a crude shape; below).  An adversarial review (stop
     36) found a single open polyline crossing itself twice, with reference
     speeds 1 to 8, whose curve to the diagonal ended at vertex 7 where
     vertex 6 was 5.0e-5 (relative) shorter: the value was 3.2e-5 high at
     ``tol=1e-5``, 15 times its estimate, and at ``tol=1e-7``, without a
     warning beyond the tolerance's.  Its start at the middle of the strip
     between them settled back at vertex 7; the one at vertex 6 stayed there.
+    Those starts go on when they are at most ``_STRIP_NEAR ** order`` times
+    as long as the curve as they stand (``order`` the metric's, at least 1:
+    a distortion of ``|r|`` by at most ``_STRIP_NEAR`` = 1.6).
+
+    An end inside a strip also gets a start at its mirror position in that
+    strip (when it lies at least ``_OWN_STRIP / 2`` of the strip from the
+    middle), kept as the starts beside a vertex line are, whose coarse
+    geodesic counts when it ends more than ``_OWN_STRIP / 2`` of the strip
+    from where the curve ends.  An adversarial review (stop 37) found a
+    jittered limaçon of 13 vertices, with ``g`` at ``tol=1e-5``, whose curve
+    from the crossing point on its symmetry axis to the diagonal ends on the
+    short edge across the axis, where the length has two nearly tied minima:
+    at 0.30 and 0.70 of the edge for ``p = 2``, at its two vertex lines for
+    ``p = 3`` and ``4.5``.  One listing or another kept the longer, 6.5e-4 to
+    1.4e-3 (relative) above another listing's ``upper_bound``, 140 to 220
+    times its estimate, without a warning; the starts that find the shorter
+    stood 1.5 (``p = 2``) and 14 (``p = 3``) times as long as the curve.
 
     Measured (``validation/ab.py``, default ``tol``): the random interval
     scenes and the ``circles`` family kept their times (old/new 1.00 and
@@ -1345,16 +1369,24 @@ def _strip_starts(domain: Domain, metric: Metric, keys: list, held: dict, ng: in
             home = (lines[i], lines[min(i + 1, len(lines) - 1)])
             targets = [(0.5 * (lines[j] + lines[j + 1]), False)
                        for j in range(i - _STRIP_REACH, i + _STRIP_REACH + 1) if j != i and 0 <= j < len(lines) - 1]
-        for t, near in targets:
+            # and its mirror position in its own strip, where a second minimum can lie (a curve from a crossing on the
+            # symmetry axis of a curve to an edge across it: _OWN_STRIP)
+            if i + 1 < len(lines):
+                width = lines[i + 1] - lines[i]
+                t = lines[i] + lines[i + 1] - end[b]
+                if abs(t - end[b]) >= _OWN_STRIP * width:
+                    targets.append((t, True, (end[b] - 0.5 * _OWN_STRIP * width, end[b] + 0.5 * _OWN_STRIP * width)))
+        for t, near, *own in targets:
             Y = X + np.outer((t - end[b]) * s / s[-1], move)
             if domain.kind in ("rect", "triangle") and not np.allclose(_project(domain, Y), Y, rtol=0.0, atol=1e-12):
                 continue  # the moved curve leaves the domain
-            todo.append((k, b, home, near, Y[::-1] if k[0] < ng else Y))
+            todo.append((k, b, own[0] if own else home, near, Y[::-1] if k[0] < ng else Y))
     if todo:  # the moved curves as they stand: those far longer than the curve lead elsewhere (beside a vertex line
         # the move is short, and its crude shape alone can cost more: 2.0 % and 3.8 % on the review's curl)
         moved = polyline_lengths(domain, metric, [Y for *_, Y in todo])
+        near = _STRIP_NEAR ** max(float(metric.order), 1.0)  # a distortion of |r| by that factor, in the length
         todo = [t for t, L in zip(todo, moved)
-                if L <= (1.0 + (_STRIP_NEAR if t[3] else _ALTERNATIVE_COARSE)) * held[t[0]].length]
+                if L <= (near if t[3] else 1.0 + _ALTERNATIVE_COARSE) * held[t[0]].length]
 
     def elsewhere(n, Z):  # the coarse geodesic ends away from the curve's own strip (or vertex line)
         k, b, (lo, hi), *_ = todo[n]
@@ -2079,7 +2111,7 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
             # (_strip_starts: a local minimum of the length in each)
             for k, jobs in _strip_starts(domain, metric, keys, held, ng).items():
                 other[k] = other.get(k, []) + jobs
-            out.update(_restarted(domain, metric, other, held, tol, atol, clearly=True))
+            out.update(with_images(_restarted(domain, metric, other, held, tol, atol, clearly=True), held))
             # and one that runs beside a vertex line, folded onto each side of it (_crease_starts; they count only
             # where one beats the curve by more than its estimate)
             held = {**cache, **out}
@@ -2088,13 +2120,7 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
             for k in sorted(keys, key=lambda k: -held[k].length):
                 if mirror is None or _mirror_key(k, held, mirror[0])[0] not in folded:
                     folded[k] = _crease_starts(domain, held[k], cell, *_grounds(k, ng))
-            changed = _restarted(domain, metric, folded, held, tol, atol, clearly=True)
-            if mirror is not None:
-                for k, rp in list(changed.items()):
-                    m, flip = _mirror_key(k, held, mirror[0])
-                    if m != k and m in held and m not in changed:
-                        changed[m] = _mirrored(rp, mirror[1], flip)
-            out.update(changed)
+            out.update(with_images(_restarted(domain, metric, folded, held, tol, atol, clearly=True), held))
             # a chosen curve pinned at a corner of the cells, again from beside it (see _corner_starts)
             out.update(_leave_corners(domain, metric, keys, {**cache, **out}, lambda k, X: GeodesicJob(
                 X, *_grounds(k, ng)), tol, atol))
@@ -2105,6 +2131,16 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
                 promote(lambda k, _: k in images or k[::-1] in images)
                 out.update(_mirror_pairs(keys, {**cache, **out}, *mirror))
             return out
+
+        def with_images(changed, held):
+            # the curves that starts replaced, each one's mirror image following where it is shorter than the image's
+            # own curve and no start replaced that one (on an annulus: _mirror_of)
+            if mirror is not None:
+                for k, rp in list(changed.items()):
+                    m, flip = _mirror_key(k, held, mirror[0])
+                    if m != k and m in held and m not in changed and rp.length < held[m].length:
+                        changed[m] = _mirrored(rp, mirror[1], flip)
+            return changed
 
         second: dict = {}
 
