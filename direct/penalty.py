@@ -186,7 +186,8 @@ _STRIP_SNAP = 1e-3
 #: times slower at tol=1e-3 (20 times for every metric: about 1.15 times, validation/same_values.py). No cap: at g with
 #: p = 4.5 the limit is 69 (38 interval scenes at tol=1e-3: 21 coarse-geodesic starts instead of 1, 0.6 s of 29.8 s).
 #: A metric without an order (a GFamily of another h, euclid) gets 1.6 itself; the starts in the farther strips keep
-#: the 2 % limit of _ALTERNATIVE_COARSE (with g they stood 5.5 to 72 times as long along the limacon's diagonal: never kept)
+#: the 2 % limit of _ALTERNATIVE_COARSE (with g they stood 5.5 to 72 times as long along the limacon's diagonal: never
+#: kept)
 _STRIP_NEAR = 1.6
 #: a chosen curve whose end lies at least half this fraction of its strip from the strip's middle also gets a start
 #: with its end at the mirror position in the strip (see _strip_starts); its coarse geodesic counts when it ends
