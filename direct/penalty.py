@@ -1311,10 +1311,10 @@ def _strip_starts(domain: Domain, metric: Metric, keys: list, held: dict, ng: in
     a distortion of ``|r|`` by at most ``_STRIP_NEAR`` = 1.6).
 
     An end inside a strip, on a side or on the diagonal, also gets a start
-    at its mirror position in that strip (when it lies at least ``_OWN_STRIP / 2`` of the strip from the
-    middle), kept as the starts beside a vertex line are, whose coarse
-    geodesic counts when it ends more than ``_OWN_STRIP / 2`` of the strip
-    from where the curve ends.  An adversarial review (stop 37) found a
+    at its mirror position in that strip (when it lies at least
+    ``_OWN_STRIP / 2`` of the strip from the middle), kept as the starts
+    beside a vertex line are, whose coarse geodesic counts when it ends more
+    than ``_OWN_STRIP / 2`` of the strip from where the curve ends.  An adversarial review (stop 37) found a
     jittered limaçon of 13 vertices, with ``g`` at ``tol=1e-5``, whose curve
     from the crossing point on its symmetry axis to the diagonal ends on the
     short edge across the axis, where the length has two nearly tied minima:
@@ -2066,6 +2066,16 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
                     out[n] = out[n].reversed()
             return out
 
+        def with_images(changed, held):
+            # the curves that starts replaced, each one's mirror image following where it is shorter than the image's
+            # own curve and no start replaced that one (on an annulus: _mirror_of)
+            if mirror is not None:
+                for k, rp in list(changed.items()):
+                    m, flip = _mirror_key(k, held, mirror[0])
+                    if m != k and m in held and m not in changed and rp.length < held[m].length:
+                        changed[m] = _mirrored(rp, mirror[1], flip)
+            return changed
+
         def finish(keys, cache, promote):
             # a chosen curve with both ends free around a circle: rotations along the circle nearly preserve its
             # length, so it is refined again from its route shifted by fractions of an edge (see _family_shifts)
@@ -2135,16 +2145,6 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
                 promote(lambda k, _: k in images or k[::-1] in images)
                 out.update(_mirror_pairs(keys, {**cache, **out}, *mirror))
             return out
-
-        def with_images(changed, held):
-            # the curves that starts replaced, each one's mirror image following where it is shorter than the image's
-            # own curve and no start replaced that one (on an annulus: _mirror_of)
-            if mirror is not None:
-                for k, rp in list(changed.items()):
-                    m, flip = _mirror_key(k, held, mirror[0])
-                    if m != k and m in held and m not in changed and rp.length < held[m].length:
-                        changed[m] = _mirrored(rp, mirror[1], flip)
-            return changed
 
         second: dict = {}
 
