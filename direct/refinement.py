@@ -15,7 +15,8 @@ so each grid route becomes a polyline whose exact metric length
   refracts), sliding along that line, so that every segment lies in one
   cell where its length is smooth.  Free vertices move across the curve
   only (along the polyline's normals: moves along it barely change the
-  length and make the problem singular); ends slide on their boundary, with
+  length and make the problem singular; only the L-BFGS-B pass of a closed
+  curve moves them along it too); ends slide on their boundary, with
   a geometric grading of vertices next to them and the freedom to change
   side at a corner.
 * A damped Newton method (Levenberg-Marquardt with Marquardt's scaling,
@@ -369,7 +370,8 @@ def _normal_modes(X: np.ndarray, modes: _Modes, closed: bool, speed_at=None) -> 
     nearly singular and Newton creeps; the normal offsets alone are well
     conditioned.  The spacing of the vertices stays that of the resampled
     route and its midpoint refinements, the family Richardson extrapolation
-    assumes.
+    assumes (but where the L-BFGS-B polish of a closed curve moves them along
+    it: :func:`_settle`).
 
     With ``speed_at`` (:func:`_speed_lookup`), on the free vertices next to
     an end that slides on the boundary (up to the first vertex held on a
@@ -1162,8 +1164,8 @@ def _optimize_many(domain: Domain, metric: Metric, items: list, scale: float, ma
     together by :func:`_newton_many`; the others go one by one through
     :func:`_optimize_level`.  Curves that Newton leaves unconverged get an
     L-BFGS-B polish, unless ``polish`` is False (the coarse pass, which only
-    needs the shape of the curves), in ``polish_modes`` where given and not
-    None, else in ``modes``.
+    needs the shape of the curves): in ``polish_modes`` where given and not
+    None (the unstacked curves only), else in ``modes``.
     """
     out: list = [None] * len(items)
     stacked, pars = [], []
@@ -1184,8 +1186,6 @@ def _optimize_many(domain: Domain, metric: Metric, items: list, scale: float, ma
         for c, (i, par) in enumerate(zip(stacked, pars)):
             Xc = X[stack.voff[c]:stack.voff[c + 1]].copy()
             if not conv[c] and polish:
-                if len(items[i]) > 3 and items[i][3] is not None:
-                    par = _Parametrization(Xc, items[i][3], items[i][2])
                 Xc = _lbfgs_polish(domain, metric, par, Xc, scale)
             out[i] = (Xc, bool(conv[c]))
     return out
@@ -1349,7 +1349,7 @@ def _remaining_gain(gains: list[float]) -> float:
 
 
 def _settle(domain: Domain, metric: Metric, curves: list[_Curve], scale: float, tol: float, max_rounds: int):
-    """Rounds of normal moves at the current level, the normals recomputed each time, until the lengths settle.
+    """Rounds of moves at the current level (Newton along the normals, recomputed each time) until the lengths settle.
 
     One round cannot carry a vertex past the centre of curvature of the
     polyline.  The rounds go on while what they could still gain
@@ -1363,16 +1363,21 @@ def _settle(domain: Domain, metric: Metric, curves: list[_Curve], scale: float, 
     L-BFGS-B polish of a closed curve moves them in both coordinates (its own
     modes: refraction vertices still slide on their lines).  Along the
     normals a refraction vertex can slide only about a segment per round, as
-    its neighbours cannot follow it along the curve; on a closed curve whose
-    Newton never converges (``g`` with ``p = 2`` on the 8-gon nested in a
-    16-gon, ``nested_8_16_g`` of ``validation/listings_scenes.json``, where
-    the curve meets a vertex line at a corner 0.25 from where it should) the
-    rounds' gains dropped by a factor of 180 and then rose again, the level
-    stopped on that ratio, and the curve ended 1.0e-2 too long at
-    ``tol=1e-3``, 8.9 times its estimate (``validation/rugged_closed_g.py``).
-    With the polish in both coordinates four of the five grid starts reach
-    the shortest at ``tol=1e-3`` (1.1e-3 relative or closer; the fifth is
-    another local geodesic), in 5 s instead of 31 s.  Open curves keep the
+    its neighbours cannot follow it along the curve.  On a closed curve whose
+    Newton converged in no round (``g`` with ``p = 2`` on the 8-gon nested in
+    a 16-gon, ``nested_8_16_g`` of ``validation/listings_scenes.json``), the
+    curve crossed a vertex line 0.26 from where the shortest curve does; at
+    ``tol=1e-3`` its levels' rounds gained 5.2e-3, 2.8e-5, 8.8e-7 (76
+    segments) and 2.3e-3, 5.0e-6 (148), each level stopped on that ratio,
+    and the curve ended 1.0e-2 too long, 8.9 times its estimate (at
+    ``tol=1e-4`` the rounds of 146 segments went on: 2.3e-3, 5.0e-6, 2.2e-4,
+    4.3e-6, 4.8e-3; ``validation/rugged_closed_g.py``).  With the polish in
+    both coordinates the five grid starts refine at ``tol=1e-5`` to within
+    1.5e-6 (relative) of each other but the first, another local geodesic
+    3.0e-4 above (the default BLAS threads; with one thread the five spread
+    over 4.4e-4, the second start 2.9e-5 above the least with an estimate of
+    3.2e-6: single starts can still settle apart, the whole run takes the
+    shortest).  Open curves keep the
     polish along the normals: in both coordinates it moved the values of
     ``validation/ab.py --family random`` (16 interval scenes) by at most
     2.1e-6 relative at ``tol=1e-3`` and 6.0e-8 at ``1e-5``, none of them
