@@ -127,6 +127,14 @@ _SLIDE_REACH = 0.5
 #: grid's closed curves of the class within its stencil bias (plus this margin) of the shortest, on routes apart
 _CLOSED_STARTS = 6
 _CLOSED_MARGIN = 0.01
+#: ... searched through this many points of the seam; on a grid where the norm is not isotropic (a metric without
+#: ``deformed_grid``: ``g``), through _WIDE_BASES points on each of _WIDE_LINES lines across the period (the seam
+#: first), up to _WIDE_CANDIDATES grid curves a class, of which the _CLOSED_STARTS with the shortest coarse
+#: geodesics are refined (see _ranked_loops)
+_CLOSED_BASES = 24
+_WIDE_BASES = 16
+_WIDE_LINES = 4
+_WIDE_CANDIDATES = 16
 #: closed curves of one class whose refined lengths lie within this (relative) are one family of geodesics, shifted,
 #: and their spread is added to the estimate (see _best_of_starts)
 _CLOSED_FAMILY = 5e-4
@@ -938,6 +946,32 @@ def _family_shifts(domain: Domain) -> list[np.ndarray]:
     comp = domain.comps[int(np.flatnonzero(axis)[0])]
     edge = comp.length / comp.n_segments
     return [f * edge * axis for f in _FAMILY_SHIFTS]
+
+
+def _ranked_loops(domain: Domain, metric: Metric, found: dict, most: int) -> dict:
+    """The grid's closed curves of each class ranked by their coarse geodesics, at most ``most`` kept.
+
+    ``found`` is :func:`direct.geodesics.closed_curve_distances`'s output
+    (each class with its opposite, the same curves run backwards, in the same
+    order).  Where a class has more than ``most`` curves, each is straightened
+    at a coarse scale (:func:`direct.refinement.coarse_geodesics`, once for a
+    class and its opposite) and the ``most`` shortest are kept, in that
+    order; otherwise the grid's order stays.
+    """
+    out: dict = {}
+    for c, cands in found.items():
+        if c in out:
+            continue
+        order = list(range(len(cands)))
+        if len(cands) > most:
+            coarse = coarse_geodesics(domain, metric, [GeodesicJob(np.asarray(p, dtype=float), closed=True)
+                                                       for _, p in cands])
+            order = np.argsort([L for _, L in coarse], kind="stable")[:most].tolist()
+        out[c] = [cands[i] for i in order]
+        opposite = (-c[0], -c[1])
+        if opposite in found:
+            out[opposite] = [found[opposite][i] for i in order]
+    return out
 
 
 def _more_starts(domain: Domain, metric: Metric, starts: dict, cache: dict, tol: float, atol: float,
@@ -1934,10 +1968,16 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
             classes = sorted({k[1] for k in keys if k[0] == "closed" and k[1] not in loops})
             if not classes:
                 return False
-            loops.update(closed_curve_distances(graph, most=_CLOSED_STARTS, classes=classes,
-                                                margin=_STENCIL_BIAS.get(settings["neighbours"], 0.1) + _CLOSED_MARGIN))
-            for c, found in loops.items():
-                grid_costs[("closed", c)] = found[0][0]
+            margin = _STENCIL_BIAS.get(settings["neighbours"], 0.1) + _CLOSED_MARGIN
+            if metric.deformed_grid:
+                found = closed_curve_distances(graph, max_bases=_CLOSED_BASES, most=_CLOSED_STARTS, classes=classes,
+                                               margin=margin)
+            else:
+                found = closed_curve_distances(graph, max_bases=_WIDE_BASES, lines=_WIDE_LINES,
+                                               most=_WIDE_CANDIDATES, classes=classes, margin=margin)
+            loops.update(_ranked_loops(domain, metric, found, _CLOSED_STARTS))
+            for c, f in loops.items():
+                grid_costs[("closed", c)] = min(g for g, _ in f)
             return True
 
         def solve(costs, guess=False):

@@ -9,9 +9,12 @@ limitations*: pieces with a circle).  The figures depend on rounding: with one B
 differently (README).
 
 It takes the grid's closed curves of the class the program picks (``direct.geodesics.closed_curve_distances``
-on the default grid, as ``direct.penalty`` does), refines each alone at ``tol=1e-5`` and keeps the one that
-comes out shortest, then refines that start again at ``1e-3``, ``3e-4``, ``1e-4`` and ``1e-5`` and prints
-each length, its estimate and its error against the ``1e-5`` length (where the estimate should cover it).
+on the default grid through 24 points of the seam, as ``direct.penalty`` did until stop 38; since then, with
+``g``, it searches four lines across the period and refines the curves with the shortest coarse geodesics:
+README, *Known limitations*, closed geodesics that meet near the seam), refines each alone at ``tol=1e-5`` and
+keeps the one that comes out shortest, then refines that start again at ``1e-3``, ``3e-4``, ``1e-4`` and
+``1e-5`` and prints each length, its estimate and its error against the ``1e-5`` length (where the estimate
+should cover it).
 Writes ``rugged_closed_g.csv`` beside this file.
 """
 
