@@ -1626,3 +1626,23 @@ def test_closed_geodesics_the_grid_ranks_apart_are_ranked_by_their_coarse_geodes
     for r in runs:
         assert len(r.crossings) == 0
         assert r.value - r.error_estimate <= min(s.upper_bound for s in runs if s is not r)
+
+
+def test_best_of_closed_starts_by_length_plus_estimate():
+    """``_best_of_starts(..., by_bound=True)`` (a torus's closed curves) keeps the least ``length + error_estimate``
+    and widens its estimate by the farthest start within the family window, below it as well as above; without it
+    the least length is kept and only the starts above count."""
+    from direct.refinement import RefinedPath
+
+    P = sys.modules["direct.penalty"]
+    pts = np.zeros((2, 2))
+    good = RefinedPath(pts, 3.0759775, 3.0759952, 5.3e-5, 148)
+    near = RefinedPath(pts, 3.0759777, 3.0759987, 6.3e-5, 144)
+    rough = RefinedPath(pts, 3.0751729, 3.0760114, 2.5e-3, 130)
+    far = RefinedPath(pts, 3.2, 3.2, 1e-5, 148)
+    best = P._best_of_starts([rough, near, good, far], 5e-4, by_bound=True)
+    assert (best.length, best.upper, best.segments) == (good.length, good.upper, good.segments)
+    assert best.error_estimate == pytest.approx(good.error_estimate + (good.length - rough.length), rel=1e-12)
+    plain = P._best_of_starts([rough, near, good, far], 5e-4)
+    assert plain.length == rough.length
+    assert plain.error_estimate == pytest.approx(rough.error_estimate + (near.length - rough.length), rel=1e-12)
