@@ -1016,7 +1016,7 @@ def _restarted(domain: Domain, metric: Metric, starts: dict, held: dict, tol: fl
     limaçon at 32 vertices listed from the middle of its vertex list: both
     mirror curves held at the same corner, 4.1e-6 relative above ``J`` at
     ``tol=1e-5`` with an estimate of 2.6e-7, its starts 1.7e-5 above it;
-    README, *Known limitations*).  A window of ten tolerances made the two
+    docs/record.md, *Known limitations*).  A window of ten tolerances made the two
     overlapping polygons of ``test_a_curve_held_beside_a_corner_of_the_cells``
     warn at the default ``tol`` (their starts 1.3e-3 apart, in other
     geodesics), though their value is right.  On the random interval scenes
@@ -1054,7 +1054,7 @@ def _leave_corners(domain: Domain, metric: Metric, keys: list, held: dict, job_o
     points)`` is the curve as a job, its ends held as the entry's are; see
     :func:`_corner_starts`, :func:`_bent_starts` and :func:`_restarted`.  Once: a second round on the curves the first
     replaced found nothing on the limaçon where the replacement stops at the
-    next corner of a row (README, *Known limitations*).
+    next corner of a row (docs/record.md, *Known limitations*).
     """
     jobs = {k: job_of(k, held[k].points) for k in keys}
     corner = {k: _corner_starts(domain, held[k], jobs[k]) for k in keys}
@@ -1857,7 +1857,7 @@ def _mirror_pairs(keys: list, cache: dict, node: dict, period: float) -> dict:
     widened by their spread when they lie within 1 % (:func:`_best_of_starts`:
     minima that close leave the global one unknown to about their spread).
     Measured on the limaçon ``r = 0.7 + cos t`` at 32 vertices listed in
-    reverse (README, *Known limitations*): the two curves 0.0073431755 and
+    reverse (docs/record.md, *Known limitations*): the two curves 0.0073431755 and
     0.0073430578 at the default ``tol``, held at different corners of the
     cells (the geodesic 0.0073430250); both are now 0.0073430578, each with
     an estimate of 1.2e-7.  An entry whose mirror was not refined gets the

@@ -165,7 +165,7 @@ def _crease_by_a_sliding_end():
 @pytest.mark.filterwarnings("ignore::direct.ToleranceWarning")  # the spread of the two starts exceeds 1e-5
 @pytest.mark.parametrize("tol, second_pass", [(1e-3, True), (1e-4, None), (1e-5, None)])
 def test_a_crease_by_a_sliding_end_is_covered_by_the_second_pass(tol, second_pass):
-    """From a scratch sweep of crossings with uneven speeds (README, *Above tol = 1e-4*): the second start
+    """From a scratch sweep of crossings with uneven speeds (docs/record.md, *Above tol = 1e-4*): the second start
     finds the shorter of the two local geodesics and its spread enters the estimate."""
     scene, exact = _crease_by_a_sliding_end()
     res = direct.penalty(scene, tol=tol, second_pass=second_pass)

@@ -7,7 +7,7 @@ reference is the scene's value at ``tol=1e-6`` on 192 cells (the second pass
 on: two grids and their spread), except where a closed form or an
 independent value is known for ``G``: ``cross`` (1/12), ``cross60``
 (shared/NUMERICS.md), ``fig11`` and ``fig13`` (one and three times
-``J(reversed 96-gon)`` = 17.755677948, README).  A row is ``uncovered`` when
+``J(reversed 96-gon)`` = 17.755677948, docs/record.md).  A row is ``uncovered`` when
 ``|value - reference|`` exceeds the row's ``error_estimate`` plus the
 reference's own; with a ``ToleranceWarning`` it is flagged, not silent.
 Writes ``coarse_grids.csv`` beside this file and prints the uncovered rows.

@@ -3,7 +3,7 @@
 Run ``python validation/limacon_listings.py`` (about two and a half minutes alone).  The scene is
 ``tests/data/limacon_13_jittered.json``: a limaçon of 13 vertices at jittered angles, one self-crossing on
 its symmetry axis, whose curve from the crossing point to the diagonal ends on the short edge across the
-axis, where the length has two nearly tied minima (README, *Known limitations*).  Each of its 26 listings
+axis, where the length has two nearly tied minima (docs/record.md, *Known limitations*).  Each of its 26 listings
 (started from each of its 13 vertices, in both orientations; ``np.roll`` and reversal of reference and
 deformed alike, which do not change ``J``) runs with ``g`` at ``p = 2``, ``3`` and ``4.5`` at ``tol=1e-5``,
 and at ``p = 3`` at ``tol=1e-3``.

@@ -3,7 +3,7 @@
 Run ``python validation/listings.py`` (about ten minutes).  The scenes are those of
 ``listings_scenes.json`` beside this file: pieces of ``M x M`` with a circle (tori, a cylinder) on which
 adversarial reviews found values too high by more than their estimates, without a warning, for some
-listings (README, *Known limitations*).  Each scene runs as given, with its two components swapped, with
+listings (docs/record.md, *Known limitations*).  Each scene runs as given, with its two components swapped, with
 both vertex lists of every component reversed, and with every closed component started from the middle of
 its vertex list (``np.roll`` of reference and deformed alike).  None of these changes ``J``.
 

@@ -4,7 +4,7 @@ Run ``python validation/resolution.py`` (a few minutes).  Writes
 ``resolution.csv`` beside this file and prints, per scene, the values and
 their relative spread between resolutions 96 and 192.  The refined value
 should not depend on the grid; where it does, the grid led the refinement to
-different local geodesics (see the README's known limitations).
+different local geodesics (see docs/record.md, *Known limitations*).
 """
 
 from __future__ import annotations

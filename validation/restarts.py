@@ -3,7 +3,7 @@
 Run ``python validation/restarts.py`` (about half a minute).  ``nested`` (two concentric regular
 128-gons, section 3.3.4) needs a closed curve on each of the tori ``M1 x M2`` and ``M2 x M1``; rotating
 it along the circles nearly preserves its length, so the refinement faces a family of nearly tied
-geodesics and keeps the shortest of three starts (README, *Known limitations*).  This computes
+geodesics and keeps the shortest of three starts (docs/record.md, *Known limitations*).  This computes
 ``J`` at ``tol=1e-5`` and, for each chosen closed curve, refines it again (``refine_many`` with the same
 tolerance) from its own polyline and from copies shifted along both circles by 0.25, 0.5, 0.75 and 1
 edge (a whole edge maps the scene onto itself).  Prints the lengths; a restart shorter than the chosen

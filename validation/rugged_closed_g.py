@@ -4,14 +4,14 @@ Run ``python validation/rugged_closed_g.py`` (about half a minute; ``--penalty``
 ``tol=1e-4``, about a minute).  The scene is ``nested_8_16_g`` of ``listings_scenes.json`` (a random
 8-gon nested in a 16-gon, no crossing, ``g`` with ``p = 2``), listed from the middle of both vertex lists
 (``listings.py``'s ``rolled``), whose value at the default ``tol`` lay 3.4e-3 (relative) above the other
-listings' least ``upper_bound``, its estimate taken off, without a warning until stop 38 (README, *Known
+listings' least ``upper_bound``, its estimate taken off, without a warning until stop 38 (docs/record.md, *Known
 limitations*: pieces with a circle).  The figures depend on rounding: with one BLAS thread the starts settle
-differently (README).
+differently (docs/record.md).
 
 It takes the grid's closed curves of the class the program picks (``direct.geodesics.closed_curve_distances``
 on the default grid through 24 points of the seam, as ``direct.penalty`` did until stop 38; since then, with
 ``g``, it searches four lines across the period and refines the curves with the shortest coarse geodesics:
-README, *Known limitations*, closed geodesics that meet near the seam), refines each alone at ``tol=1e-5`` and
+docs/record.md, *Known limitations*, closed geodesics that meet near the seam), refines each alone at ``tol=1e-5`` and
 keeps the one that comes out shortest, then refines that start again at ``1e-3``, ``3e-4``, ``1e-4`` and
 ``1e-5`` and prints each length, its estimate and its error against the ``1e-5`` length (where the estimate
 should cover it).

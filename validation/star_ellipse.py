@@ -2,7 +2,7 @@
 
 Run ``python validation/star_ellipse.py`` (about four minutes alone: two calls of ``direct.penalty``
 at the default ``tol``, one after the other).  The scene is the one an adversarial review found at
-stop 34 (README, *Known limitations*): a star ``r = 1 + 0.3 cos 10t`` at 30 vertices ``t = 2 pi k / 30 +
+stop 34 (docs/record.md, *Known limitations*): a star ``r = 1 + 0.3 cos 10t`` at 30 vertices ``t = 2 pi k / 30 +
 0.021`` (reference the unit circle at the same ``t``) crossing an ellipse ``(0.04 + 1.05 cos s, 0.03 +
 0.95 sin s)`` at 20 vertices ``s = 2 pi k / 20 + 0.1`` (reference the circle of radius 1.05 about
 ``(10.04, 0.03)``; 20 crossings, ``G``).  Listed with both vertex lists rolled by 7 it came out 1.36e-3

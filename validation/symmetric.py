@@ -3,7 +3,7 @@
 Run ``python validation/symmetric.py`` (about a minute).  A closed polygon sampled evenly from a formula
 symmetric about an axis through its crossing has a straight local geodesic from the crossing point to the
 diagonal along ``(-1, 1)``, which every stencil weighs exactly while the shortest curves beside it cost up
-to the stencil's bias more (8.2 % with 8 moves): README, *Known limitations*, symmetric polygons.  The
+to the stencil's bias more (8.2 % with 8 moves): docs/record.md, *Known limitations*, symmetric polygons.  The
 scenes: the figure eights ``(sin t, sin t cos t)`` at 10 to 32 vertices and the limaçons ``r = a + cos t``,
 ``a`` = 0.3, 0.5, 0.6 and 0.8, at 12 to 32 vertices (reference: the unit polygon, the same ``t``), each at
 ``neighbours=8`` and ``16``, the default ``tol``.  A pair agrees when each value, less its estimate, is at
