@@ -692,3 +692,23 @@ def test_below_the_default_resolution_the_default_computation_runs_whole():
     assert coarse.settings["second_pass"] and coarse.settings["route_check"]
     assert coarse.value <= default.upper_bound
     assert abs(coarse.value - default.value) <= coarse.error_estimate + default.error_estimate
+
+
+def test_a_curve_far_shorter_than_its_grid_length_keeps_its_refinement_when_refined_again():
+    """An adversarial review (stop 39): two open polylines crossing four times, close to each other in between (a
+    thin lens), ``g`` with ``p = 2``. The grid put the curve between the two middle crossing points 17.7 times
+    above its refined length, beyond every other entry's ratio. At ``tol=1e-5`` the chosen curves were refined
+    again with the refined value's absolute tolerance; that curve was dropped from the cache with them and
+    entered the second solve at its grid length's lower bound, so the program took the other matching, 7.4e-5
+    (relative) longer, with an estimate of 4e-6 and no warning. The entries refined again now enter at the
+    optimistic cost of their first refinement (``_settle(..., roughly=...)``)."""
+    import os
+
+    scene = direct.load_scene(os.path.join(os.path.dirname(__file__), "data", "lens_four_crossings_g.json"))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", direct.ToleranceWarning)
+        a, b = (direct.penalty(scene, metric="g", power=2, tol=tol) for tol in (1e-5, 1e-6))
+    assert len(a.crossings) == 4
+    assert a.value - a.error_estimate <= b.upper_bound
+    assert b.value - b.error_estimate <= a.upper_bound
+    assert a.value == pytest.approx(b.value, rel=1e-5)
