@@ -730,7 +730,10 @@ def _settle(grid_costs: dict, solve, refine_keys, bias: float, finish=None, cach
     (:func:`_foreseen`, through ``foresee(costs)``, by default ``solve``; on
     a torus one pass of the program instead of
     :func:`direct.matching._two_stage`'s two).  ``cache`` and ``finished`` may bring entries
-    refined, and finished, already.
+    refined, and finished, already; ``roughly`` entries refined at a looser
+    tolerance (the chosen curves :func:`_solve_domain` refines again with the
+    refined value's absolute tolerance), which enter as roughly refined ones
+    (below) and are refined in full when a solve asks for them.
 
     ``finish(keys, cache, promote)`` gets a ``promote(wanted)`` that refines
     in full, into ``cache``, the roughly refined entries (below) for which
