@@ -812,6 +812,9 @@ def _tolerances(tol: float, atol: float, rough: bool) -> tuple[float, float]:
 def _rough_cost(rp: RefinedPath) -> float:
     """An entry's optimistic length from its rough refinement (at ``_ROUGH_TOL``; see :func:`_settle`).
 
+    Also that of an entry refined at a looser absolute tolerance, to be refined again (``_settle``'s
+    ``roughly``, from :func:`_solve_domain`): a wider margin than its own estimate needs.
+
     The rough length less ``_ROUGH_MARGIN`` times its estimate plus
     ``_ROUGH_TOL`` of it, at least 0.  The full refinement starts again
     from the grid's route, runs its rounds to the finer tolerance and goes on

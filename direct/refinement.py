@@ -370,8 +370,8 @@ def _normal_modes(X: np.ndarray, modes: _Modes, closed: bool, speed_at=None) -> 
     nearly singular and Newton creeps; the normal offsets alone are well
     conditioned.  The spacing of the vertices stays that of the resampled
     route and its midpoint refinements, the family Richardson extrapolation
-    assumes (but where the L-BFGS-B polish of a closed curve moves them along
-    it: :func:`_settle`).
+    assumes (but where the L-BFGS-B polish, after a round Newton left
+    unconverged, moves them along it: :func:`_settle`).
 
     With ``speed_at`` (:func:`_speed_lookup`), on the free vertices next to
     an end that slides on the boundary (up to the first vertex held on a
@@ -806,10 +806,14 @@ def _newton(par, unpack, length, assemble, z, max_iter, rtol=1e-11, max_move=np.
     ``kinks(X, X_trial)``, where given, names the unknowns beside the
     segments whose lengths grew beyond the quadratic model at a rejected
     trial step (:func:`_kinked_unknowns`).  Those unknowns get a damping of
-    their own (``_KINK_DAMPING`` times the Hessian's scale, a hundred times
-    more at each repeat, a tenth of it after each accepted step) and the
-    step is solved again, up to ``_KINK_SOLVES`` times, before the step is
-    cut back.  One kink, a free vertex beside a tiny segment against a
+    their own (``_KINK_DAMPING`` times their own diagonal entries of the
+    Hessian, a hundred times more at each repeat, a tenth of it after each
+    accepted step) and the step is solved again, up to ``_KINK_SOLVES``
+    times, before the step is cut back; a damped step whose decrease is
+    below the convergence threshold (or not a descent) gives way to the
+    step solved before it, which is cut back (a code review: scaled by the
+    Hessian's largest entry, such damping froze the kinked unknowns, and a
+    curve could go through every iteration without a step).  One kink, a free vertex beside a tiny segment against a
     refraction vertex, crossing the vertex line, held the whole step of a
     closed curve of 330 vertices to 2.4e-4 of its Newton step, where every
     other segment followed the model (``g`` with ``p = 2``,
@@ -821,16 +825,20 @@ def _newton(par, unpack, length, assemble, z, max_iter, rtol=1e-11, max_move=np.
     f, grad, H = assemble(X)
     lam = 1e-8
     eye = sp.identity(par.nv, format="csc")
-    damp = np.zeros(par.nv)  # the unknowns' own damping, beside kinks (in units of the Hessian's scale)
+    damp = np.zeros(par.nv)  # the unknowns' own damping beside kinks, in units of their own diagonal entries
     for _ in range(max_iter):
-        hscale = max(float(np.abs(H.diagonal()).max()), 1e-300)
+        diag = np.abs(H.diagonal())
+        hscale = max(float(diag.max()), 1e-300)
+        previous = None  # the step solved before the latest damping (its trial rejected)
         for solve in range(_KINK_SOLVES + 1):
             A = H + lam * hscale * eye
             if damp.any():
-                A = A + sp.diags(damp * hscale, format="csc")
+                A = A + sp.diags(damp * np.maximum(diag, 1e-12 * hscale), format="csc")
             dz = spsolve(A, -grad)
             decrease = -float(dz @ grad)
             if not np.all(np.isfinite(dz)) or decrease <= 0 or decrease <= rtol * f:
+                if previous is not None:  # damped into a step that says nothing: the one before, cut back below
+                    dz, decrease, t, X_new, f_new = previous
                 break
             move = 0.0
             if np.isfinite(max_move):
@@ -843,6 +851,7 @@ def _newton(par, unpack, length, assemble, z, max_iter, rtol=1e-11, max_move=np.
             bad = kinks(X, X_new)
             if not len(bad):
                 break
+            previous = (dz, decrease, t, X_new, f_new)
             damp[bad] = np.maximum(damp[bad] * 100.0, _KINK_DAMPING)
         if not np.all(np.isfinite(dz)) or decrease <= 0:
             lam = max(lam * 100, 1e-6)
@@ -879,7 +888,7 @@ def _newton(par, unpack, length, assemble, z, max_iter, rtol=1e-11, max_move=np.
     return X, False
 
 
-#: the damping of an unknown beside a kink of the length, in units of the Hessian's largest diagonal entry
+#: the damping of an unknown beside a kink of the length, in units of its own diagonal entry of the Hessian
 _KINK_DAMPING = 1.0
 #: how many times :func:`_newton` solves a step again with more damping beside kinks before cutting it back
 _KINK_SOLVES = 3
@@ -1402,7 +1411,8 @@ _RATIO_ROUND = 1e-4
 #: the largest ratio of successive rounds' gains taken as converging (a geometric tail of at most 19 more gains)
 _MAX_RATIO = 0.95
 #: a round of a closed curve whose optimization did not converge and that gained less than this fraction of the round
-#: before stalled, rather than converged: its level gets one more round (see :func:`_settle`)
+#: before stalled, rather than converged: its level gets one more round, for each such round, within ``max_rounds``
+#: (see :func:`_settle`)
 _STALL_RATIO = 0.05
 
 
@@ -1489,7 +1499,7 @@ def _settle(domain: Domain, metric: Metric, curves: list[_Curve], scale: float, 
                 more.append(c)
             elif (c.job.closed and not c.converged and len(c.gains) >= 2 and c.gains[-1] < _STALL_RATIO * c.gains[-2]
                   and c.gains[-2] > _RATIO_ROUND * tol * L):
-                more.append(c)  # a stalled round says nothing of what is left: one more
+                more.append(c)  # a stalled round says nothing of what is left: one more (per stalled round)
         todo = more
         if not todo:
             break

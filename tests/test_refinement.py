@@ -266,3 +266,36 @@ def test_a_start_made_from_a_refined_curve_stops_at_its_third_level():
     # from the grid route (a coarse geodesic of 16 segments): every level up to max_segments, each one more
     ordinary = [refine_many(dom, met, jobs[:1], tol=1e-14, max_segments=m)[0].segments for m in (64, 128, 256)]
     assert ordinary[1] > 1.5 * ordinary[0] and ordinary[2] > 1.5 * ordinary[1]
+
+
+def test_newton_damping_beside_a_kink_still_steps():
+    """``_newton`` with ``kinks``: an unknown beside a kink of the objective (``10 |z0 - 0.9|``) and a stiff one
+    (diagonal 1e6). The kinked unknown gets damping of its own; a code review found that, scaled by the
+    Hessian's largest entry, that damping froze it, its decrease fell below the threshold, and the damping was
+    cleared and set again in every iteration without a step (20 iterations, ``z0`` still 0). Now a damped step
+    that says nothing gives way to the step before it, which is cut back."""
+    import scipy.sparse as sp
+
+    from direct.refinement import _newton
+
+    class Par:
+        nv = 2
+        M = sp.identity(2, format="csr")
+
+        def clip(self, z):
+            return z
+
+        def pack(self, X):
+            return np.array(X, dtype=float)
+
+    def length(X):
+        return 1e8 + 0.5 * (X[0] - 1.0) ** 2 + 10.0 * abs(X[0] - 0.9) + 0.5e6 * X[1] ** 2
+
+    def assemble(X):
+        g = np.array([(X[0] - 1.0) + 10.0 * np.sign(X[0] - 0.9), 1e6 * X[1]])
+        return length(X), g, sp.csc_matrix(np.diag([1.0, 1e6]))
+
+    X, _ = _newton(Par(), lambda z: np.array(z, dtype=float), length, assemble, np.zeros(2), 20, rtol=1e-11,
+                   kinks=lambda X, X_trial: np.array([0]))
+    assert abs(X[0] - 0.9) < 1e-3
+    assert length(X) - 1e8 < 0.0051
