@@ -894,19 +894,19 @@ _KINK_DAMPING = 1.0
 _KINK_SOLVES = 3
 
 
-def _kinked_unknowns(metric: Metric, comps, par: _Parametrization, X: np.ndarray, f: np.ndarray, gl: np.ndarray,
-                     Hl: np.ndarray, X_trial: np.ndarray) -> np.ndarray:
+def _kinked_unknowns(par: _Parametrization, X: np.ndarray, f: np.ndarray, gl: np.ndarray, Hl: np.ndarray,
+                     X_trial: np.ndarray, f_trial: np.ndarray) -> np.ndarray:
     """The unknowns beside the segments whose lengths grew beyond their quadratic models from ``X`` to ``X_trial``.
 
     ``f``, ``gl``, ``Hl`` are each segment's length, gradient and Hessian at
-    ``X`` (:func:`_segment_derivatives`).  A segment whose length exceeds its
+    ``X`` (:func:`_segment_derivatives`), ``f_trial`` its length at ``X_trial``.  A segment whose length exceeds its
     model by more than a tenth of the largest such excess is kinked (a
     vertex crossed a vertex line, or a segment collapsed); the unknowns that
     move its two ends are returned (empty when no segment exceeds its model).
     """
     dU = np.hstack([X_trial[:-1] - X[:-1], X_trial[1:] - X[1:]])
     model = (gl * dU).sum(axis=1) + 0.5 * np.einsum("si,sij,sj->s", dU, Hl, dU)
-    excess = segment_lengths(metric, comps, X_trial[:-1], X_trial[1:]) - f - model
+    excess = f_trial - f - model
     top = float(excess.max())
     if not top > 0.0:
         return np.empty(0, dtype=np.intp)
@@ -976,8 +976,12 @@ def _optimize_level(domain: Domain, metric: Metric, X0: np.ndarray, modes: _Mode
     def unpack(z):
         return _project(domain, par.unpack(z))
 
+    measured: list = [None, None]  # the latest polyline measured and its segments' lengths (for kinks)
+
     def length(X):
-        return float(segment_lengths(metric, comps, X[:-1], X[1:]).sum())
+        seg = segment_lengths(metric, comps, X[:-1], X[1:])
+        measured[:] = [X, seg]
+        return float(seg.sum())
 
     def assemble(X):
         seg = np.linalg.norm(X[1:] - X[:-1], axis=1)
@@ -996,7 +1000,8 @@ def _optimize_level(domain: Domain, metric: Metric, X0: np.ndarray, modes: _Mode
     def kinks(X, X_trial):
         if at[0] is not X:
             return np.empty(0, dtype=np.intp)
-        return _kinked_unknowns(metric, comps, par, X, at[1], at[2], at[3], X_trial)
+        trial = measured[1] if measured[0] is X_trial else segment_lengths(metric, comps, X_trial[:-1], X_trial[1:])
+        return _kinked_unknowns(par, X, at[1], at[2], at[3], X_trial, trial)
 
     z = par.pack(X0)
     X, converged = _newton(par, unpack, length, assemble, z, max_iter, rtol=1e-11 if polish else 1e-7,
@@ -1252,23 +1257,24 @@ def _optimize_many(domain: Domain, metric: Metric, items: list, scale: float, ma
     stacked, pars = [], []
     for i, (X0, modes, shift, *free) in enumerate(items):
         par = _Parametrization(X0, modes, shift)
+        polish_modes = free[0] if free else None
         if par.nv == 0:
             out[i] = (X0, True)
         elif par.banded:
-            stacked.append(i)
+            stacked.append((i, shift, polish_modes))
             pars.append(par)
         else:
             out[i] = _optimize_level(domain, metric, X0, modes, shift, scale, max_iter=max_iter, polish=polish,
-                                     polish_modes=free[0] if free else None)
+                                     polish_modes=polish_modes)
     if stacked:
         stack = _Stack(domain, metric, pars, scale)
-        X, conv = _newton_many(stack, np.vstack([items[i][0] for i in stacked]), max_iter,
+        X, conv = _newton_many(stack, np.vstack([items[i][0] for i, _, _ in stacked]), max_iter,
                                rtol=1e-11 if polish else 1e-7)
-        for c, (i, par) in enumerate(zip(stacked, pars)):
+        for c, ((i, shift, polish_modes), par) in enumerate(zip(stacked, pars)):
             Xc = X[stack.voff[c]:stack.voff[c + 1]].copy()
             if not conv[c] and polish:
-                if len(items[i]) > 3 and items[i][3] is not None:
-                    par = _Parametrization(Xc, items[i][3], items[i][2])
+                if polish_modes is not None:
+                    par = _Parametrization(Xc, polish_modes, shift)
                 Xc = _lbfgs_polish(domain, metric, par, Xc, scale)
             out[i] = (Xc, bool(conv[c]))
     return out
@@ -1402,7 +1408,6 @@ class _Curve:
         self.history: list[float] = []  # the length reached at each level
         self.length = 0.0  # the length after the latest round of the current level
         self.gains: list[float] = []  # what each round of the current level gained (see _remaining_gain)
-        self.converged = True  # whether the optimization of the latest round converged
         self.result: RefinedPath | None = None
 
 
@@ -1481,8 +1486,7 @@ def _settle(domain: Domain, metric: Metric, curves: list[_Curve], scale: float, 
     for _round in range(max_rounds):
         outs = _optimize_many(domain, metric, [(c.X, _normal_modes(c.X, c.modes, c.job.closed, speed_at), c.job.shift,
                                                 c.modes) for c in todo], scale)
-        for c, (X, converged) in zip(todo, outs):
-            c.converged = converged
+        for c, (X, _) in zip(todo, outs):
             X, modes = _insert_breaks(domain, *_prune_breaks(*_merge_collapsed(*_drop_folds(X, c.modes))))
             X, modes = _truncate_ends(domain, X, modes, c.job.start_ground, c.job.end_ground)
             if c.job.end_ground is not None:
@@ -1492,12 +1496,12 @@ def _settle(domain: Domain, metric: Metric, curves: list[_Curve], scale: float, 
             c.X, c.modes = X, modes
         L_new = polyline_lengths(domain, metric, [c.X for c in todo])
         more = []
-        for c, L in zip(todo, L_new):
+        for c, L, (_, converged) in zip(todo, L_new, outs):
             c.gains.append(max(c.length - L, 0.0))
             c.length = L
             if _remaining_gain(c.gains) > 1e-2 * tol * L or (len(c.gains) == 1 and c.gains[0] > _RATIO_ROUND * tol * L):
                 more.append(c)
-            elif (c.job.closed and not c.converged and len(c.gains) >= 2 and c.gains[-1] < _STALL_RATIO * c.gains[-2]
+            elif (c.job.closed and not converged and len(c.gains) >= 2 and c.gains[-1] < _STALL_RATIO * c.gains[-2]
                   and c.gains[-2] > _RATIO_ROUND * tol * L):
                 more.append(c)  # a stalled round says nothing of what is left: one more (per stalled round)
         todo = more
