@@ -137,6 +137,7 @@ def test_small_circle_scenes_keep_their_curves(scale):
         assert len(small.pairs) == len(base.pairs)
 
 
+@pytest.mark.slow
 def test_nested_circles_need_a_closed_curve():
     """Section 3.3.4: no crossing, but the small circle jumped inside the big one."""
     sc = direct.scenes.get("nested")
@@ -182,7 +183,9 @@ def test_ring_with_collapsed_segment_G_vanishes_g_does_not():
     # one curve across the cylinder, |r| = 1 on the ring's vertices, length 1 along the segment, twice
     ring = sc.components[0]
     rmin = np.cos(np.pi / ring.n_vertices)  # the polygon's closest approach to its centre
-    assert rmin**4 * 2 - 1e-9 <= g.value <= 2 + 1e-9
+    # within its estimate of those bounds: with OpenBLAS's Sandybridge kernels (OPENBLAS_CORETYPE) the value,
+    # extrapolated, came out 1.0e-5 below the lower one, with an estimate of 4.6e-5
+    assert rmin**4 * 2 - g.error_estimate <= g.value <= 2 + g.error_estimate
 
 
 def test_circle_crossing_an_interval():
@@ -198,6 +201,7 @@ def test_circle_crossing_an_interval():
     assert direct.penalty(rigid(sc, 0.4, (1, 2))).value == pytest.approx(res.value, rel=RTOL)
 
 
+@pytest.mark.slow
 def test_two_overlapping_circles():
     t = 2 * np.pi * np.arange(120) / 120
     circ = np.column_stack([np.cos(t), np.sin(t)])
@@ -300,7 +304,7 @@ def test_winding_and_turning_numbers():
     assert turning_number(hairpin) in (-1, 0, 1)
 
 
-@pytest.mark.parametrize("metric,rel", [("G", 1e-3), ("g", 2e-3)])
+@pytest.mark.parametrize("metric,rel", [("G", 1e-3), pytest.param("g", 2e-3, marks=pytest.mark.slow)])
 def test_torus_closed_curve_against_independent_minimization(metric, rel):
     """Nested circles: the closed curve of class (1, 0) as a Fourier graph x2 = f(x1), minimized by BFGS."""
     from scipy.optimize import minimize
@@ -326,6 +330,7 @@ def test_torus_closed_curve_against_independent_minimization(metric, rel):
     assert res.value / 2 == pytest.approx(best, rel=rel)
 
 
+@pytest.mark.slow
 def test_foreseen_entries_batch_the_rounds_without_changing_the_choice(monkeypatch, refine_batches):
     """The star polygon of 9 vertices (a double cover, 9 crossings on the annulus): by symmetry every point's
     curve to the diagonal is a contender in turn. Refining the entries the next solves would ask for in one batch
@@ -347,6 +352,7 @@ def test_foreseen_entries_batch_the_rounds_without_changing_the_choice(monkeypat
     assert len(nb_fast) <= len(nb_slow) / 3
 
 
+@pytest.mark.slow
 def test_rough_refinement_hides_no_entry_from_the_checks_of_entries_not_chosen(monkeypatch):
     """Below ``tol=1e-4`` entries are refined roughly first (``_settle``); the checks of ``finish`` that look at
     entries not chosen (the shifted starts of curves between the grounds, the slid ends on the annulus, ...) must
@@ -607,6 +613,7 @@ def test_closed_curves_are_searched_only_when_the_program_picks_one(monkeypatch,
     assert any(p.closed for p in lazy.pairs) == (scene.name == "nested")
 
 
+@pytest.mark.slow
 def test_newton_steps_on_a_closed_curve_stay_within_a_period(monkeypatch):
     """``nested`` with the degenerate ``euclid`` metric at 64 cells: where the length is nearly flat, a Newton step
     on a closed curve moved vertices by 2e6 periods, and measuring the trial polyline (split on every vertex line
@@ -663,6 +670,7 @@ def test_a_curve_across_a_cylinder_gets_starts_both_ways_round():
         assert res.value <= best + 1e-9 * best
 
 
+@pytest.mark.slow
 def test_a_curve_to_the_diagonal_is_refined_with_its_end_slid_beside_a_small_loop():
     """A noisy figure eight with g (p = 2) at tol=1e-5, listed from vertex 0 and from vertex 13.
 
@@ -1188,6 +1196,7 @@ def _trefoil(reverse: bool = False, roll: int = 0, n: int = 27, c: float = 1.6, 
     return direct.Scene((direct.Component(np.roll(ref, -roll, 0), np.roll(dfm, -roll, 0), closed=True, name="T"),))
 
 
+@pytest.mark.slow
 def test_a_trefoil_whose_curves_run_beside_a_vertex_line():
     """An adversarial review (stop 32): the trefoil ``r = 1 + 1.6 cos 3t`` at 27 vertices (15 crossings; its
     rotation by a third of a turn maps the polygon onto itself, and each curve onto two copies) gave 1.0088995 at
@@ -1287,6 +1296,7 @@ def _rose_and_ellipse(reverse: bool = False) -> direct.Scene:
                                                name=name) for name, (R, D) in zip("AB", (rose, ellipse))))
 
 
+@pytest.mark.slow
 def test_a_rose_crossing_an_ellipse_beside_a_vertex_line():
     """An adversarial review (stop 33): the rose and ellipse of ``_rose_and_ellipse`` (a torus with crossings) gave
     70.835562 at the default ``tol`` (estimate 3.6e-3, no warning), 4.5e-5 (relative) above its reversed listing's
@@ -1577,9 +1587,12 @@ def test_a_curve_to_the_diagonal_tries_the_other_side_of_its_own_strip(power):
     assert len(a.crossings) == len(b.crossings) == 1
     assert a.value - a.error_estimate <= b.upper_bound
     assert b.value - b.error_estimate <= a.upper_bound
-    assert a.value == pytest.approx(b.value, rel=1e-9)
+    # the same local geodesic in both listings: 1.1e-8 (relative) apart with OpenBLAS's AVX-512 kernels, 0 with
+    # its Haswell kernels (rounding); the two minima of the bug lay 1.4e-3 and 7.2e-4 apart
+    assert a.value == pytest.approx(b.value, rel=1e-6)
 
 
+@pytest.mark.slow
 def test_a_closed_geodesic_whose_refraction_vertex_must_slide_far():
     """An adversarial review of 0a6d674: a random 8-gon nested in a 16-gon, no crossing, metric ``g`` with ``p =
     2`` (``nested_8_16_g`` of ``validation/listings_scenes.json``). Listed from the middle of both vertex lists it
