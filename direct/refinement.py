@@ -915,13 +915,6 @@ def _kinked_unknowns(par: _Parametrization, X: np.ndarray, f: np.ndarray, gl: np
     return np.unique(par.M.tocsr()[rows].indices)
 
 
-# L-BFGS-B's memory (corrections kept): its own iterations cost in proportion, and with 30 they took a quarter of
-# a tol=1e-5 run's time (interval seed 123 of validation/tol_1e5.py, most of it in the starts beside corners).
-# 10 (SciPy's default) ran it 1.8 times faster, the value 1.7e-7 (relative) away, within both estimates
-# (docs/record.md, *The test suite on another processor*)
-_POLISH_MEMORY = 10
-
-
 def _lbfgs_polish(domain: Domain, metric: Metric, par: _Parametrization, X: np.ndarray, scale: float) -> np.ndarray:
     """Quasi-Newton (L-BFGS-B) on the exact gradient from ``X``: robust where the length has kinks."""
     comps = domain.comps
@@ -948,7 +941,7 @@ def _lbfgs_polish(domain: Domain, metric: Metric, par: _Parametrization, X: np.n
     bounds[k, 0] = np.maximum(par._lo, bounds[k, 0])
     bounds[k, 1] = np.minimum(par._hi, bounds[k, 1])
     res = minimize(fun, z, jac=True, method="L-BFGS-B", bounds=bounds,
-                   options={"maxiter": 100, "ftol": 1e-12, "gtol": 1e-14, "maxcor": _POLISH_MEMORY})
+                   options={"maxiter": 100, "ftol": 1e-12, "gtol": 1e-14, "maxcor": 30})
     Y = unpack(par.clip(res.x))
     # the unknowns of X itself may map to another polyline (X projected onto the domain, off its normals): the
     # polish then starts from that one and can end above X (4 of 280 polishes on 30 random interval scenes, by
