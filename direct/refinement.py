@@ -813,8 +813,9 @@ def _newton(par, unpack, length, assemble, z, max_iter, rtol=1e-11, max_move=np.
     below the convergence threshold (or not a descent) gives way to the
     step solved before it, which is cut back (a code review: scaled by the
     Hessian's largest entry, such damping froze the kinked unknowns, and a
-    curve could go through every iteration without a step).  One kink, a free vertex beside a tiny segment against a
-    refraction vertex, crossing the vertex line, held the whole step of a
+    curve could go through every iteration without a step).  One kink, a
+    free vertex beside a tiny segment against a refraction vertex, crossing
+    the vertex line, held the whole step of a
     closed curve of 330 vertices to 2.4e-4 of its Newton step, where every
     other segment followed the model (``g`` with ``p = 2``,
     ``validation/rugged_closed_g.py``); with the kinks damped, full steps

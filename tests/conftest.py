@@ -13,6 +13,17 @@ import direct
 RTOL = 5e-3
 
 
+def pytest_collection_modifyitems(config, items):
+    """Skip the tests marked ``slow`` unless ``-m`` names the marker (``python -m pytest -q -m slow``; CI runs them
+    after the default run). Skipped, not deselected: a slow test asked for by its id says how to run it."""
+    if "slow" in (config.getoption("markexpr") or ""):
+        return
+    skip = pytest.mark.skip(reason="a slow regression test (20 s and more): run it with -m slow")
+    for item in items:
+        if "slow" in item.keywords:
+            item.add_marker(skip)
+
+
 @pytest.fixture
 def refine_batches(monkeypatch) -> list[int]:
     """The number of curves in each batch ``direct.penalty`` sends to ``refine_many``, in order (a spy: the

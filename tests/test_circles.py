@@ -184,7 +184,7 @@ def test_ring_with_collapsed_segment_G_vanishes_g_does_not():
     ring = sc.components[0]
     rmin = np.cos(np.pi / ring.n_vertices)  # the polygon's closest approach to its centre
     # within its estimate of those bounds: with OpenBLAS's Sandybridge kernels (OPENBLAS_CORETYPE) the value,
-    # extrapolated, came out 1.0e-5 below the lower one, with an estimate of 4.6e-5
+    # extrapolated, came out 1.15e-5 below the lower one, with an estimate of 4.6e-5
     assert rmin**4 * 2 - g.error_estimate <= g.value <= 2 + g.error_estimate
 
 
@@ -1587,8 +1587,8 @@ def test_a_curve_to_the_diagonal_tries_the_other_side_of_its_own_strip(power):
     assert len(a.crossings) == len(b.crossings) == 1
     assert a.value - a.error_estimate <= b.upper_bound
     assert b.value - b.error_estimate <= a.upper_bound
-    # the same local geodesic in both listings: 1.1e-8 (relative) apart with OpenBLAS's AVX-512 kernels, 0 with
-    # its Haswell kernels (rounding); the two minima of the bug lay 1.4e-3 and 7.2e-4 apart
+    # the same local geodesic in both listings: 1.1e-8 (relative) apart with OpenBLAS's AVX-512 kernels, within
+    # 1e-9 with its Haswell kernels (rounding); the two minima of the bug lay 1.4e-3 and 7.2e-4 apart
     assert a.value == pytest.approx(b.value, rel=1e-6)
 
 
