@@ -1405,7 +1405,7 @@ class _Curve:
 
     def __init__(self, job: GeodesicJob, X, modes, fine: bool = False):
         self.job, self.X, self.modes = job, X, modes
-        self.fine = fine  # its route is as fine as a last level already: it stops at its third level
+        self.fine = fine  # its route is as fine as a last level already: its levels go down (_levels_down)
         self.history: list[float] = []  # the length reached at each level
         self.length = 0.0  # the length after the latest round of the current level
         self.gains: list[float] = []  # what each round of the current level gained (see _remaining_gain)
@@ -1510,6 +1510,123 @@ def _settle(domain: Domain, metric: Metric, curves: list[_Curve], scale: float, 
             break
 
 
+def _grade_and_measure(domain: Domain, metric: Metric, curves: list[_Curve], scale: float) -> None:
+    """Grade the free ends of the open curves (:func:`_grade_ends`) and set every curve's ``length``."""
+    for c in curves:
+        if not c.job.closed:
+            c.X, c.modes = _grade_ends(domain, c.X, c.modes, c.job.start_ground, c.job.end_ground, scale)
+    for c, L in zip(curves, polyline_lengths(domain, metric, [c.X for c in curves])):
+        c.length = L
+
+
+def _finish(c: _Curve, tol: float, atol: float, last: bool = True) -> bool:
+    """Set ``c.result`` from its levels' lengths ``c.history`` if they meet ``tol`` (or ``last``): whether it did.
+
+    Richardson: with an error ~ n^-2, ``L_n - L_inf ~ (L_{n/2} - L_n) / 3``.
+    The estimate is the whole last difference, three times that
+    correction: the first levels are not always asymptotic.
+    """
+    h = c.history
+    Ln = h[-1]
+    diff = h[-2] - h[-1]
+    estimate = abs(diff)
+    if len(h) >= 3:
+        # a level that barely moves after one that moved a lot has stalled (a kink it cannot cross), not converged:
+        # with an error ~ n^-2 each change is about a quarter of the one before
+        prev = abs(h[-3] - h[-2])
+        estimate = max(estimate, prev / 4.0)
+        if abs(diff) <= prev:
+            # changes shrinking slower than n^-2 (a valley narrower than the segments: hairpin with g, ratio 0.74,
+            # was 1.1e-3 off at tol=1e-3 with an estimate of 6.2e-4): their geometric tail, the same as for the
+            # rounds' gains (above the last change only when it is more than half the one before)
+            estimate = max(estimate, _remaining_gain([prev, abs(diff)]))
+    # what further rounds could still gain: the optimization of the last level may not have finished
+    estimate += _remaining_gain(c.gains)
+    # three levels at least: the change between the first two is often not yet in the asymptotic range (measured:
+    # 3.8e-3 off at tol 1e-3 after two), and the third checks it through the ratio
+    if not ((estimate <= max(tol * abs(Ln), atol) and len(h) >= 3) or last):
+        return False
+    # the extrapolation stays within [0, Ln]: Ln is the exact length of a curve of the class
+    c.result = RefinedPath(c.X, min(max(Ln - diff / 3.0, 0.0), Ln), Ln, estimate, len(c.X) - 1)
+    return True
+
+
+def _halved(domain: Domain, X: np.ndarray, modes: _Modes) -> tuple[np.ndarray, _Modes]:
+    """Every other vertex of a polyline (both ends kept), with vertices where it now crosses a vertex line."""
+    keep = np.zeros(len(X), dtype=bool)
+    keep[::2] = True
+    keep[-1] = True
+    return _insert_breaks(domain, *_prune_breaks(X[keep], modes[keep]))
+
+
+def _levels_down(domain: Domain, metric: Metric, curves: list[_Curve], scale: float, tol: float,
+                 max_rounds: int, levels: int = 3) -> None:
+    """The levels of curves whose routes are as fine as a last level: their own, then halved (and up again).
+
+    Such a route is a start made from a refined curve (:mod:`direct.penalty`
+    moves a refined curve off a corner of the cells, folds it across a
+    crease, ...).  Each curve settles first at its own vertices, where it
+    finds the local geodesic it leads to; then every other vertex is
+    dropped and the coarser polyline settles, ``levels - 1`` times.  Their
+    lengths are the levels of the Richardson extrapolation (``c.history``,
+    coarsest first) and the curve is its own level's, unless a coarser
+    level settled shorter than its own: its own level stopped short of its
+    geodesic (it could follow the coarser polyline), so it goes back up from
+    the coarsest, a free midpoint in every segment as :func:`refine_many`
+    doubles, and the levels on the way up are its history.
+
+    Such routes first went on doubling through every level, like a grid
+    route (one of the limaçon and ellipse's folded starts, 1,861 vertices, to
+    119,874 in 187 s: ``validation/folded_starts.py``), then stopped at their
+    third level.  Doubling from the route (three levels up from its own) cost
+    seven times a level at its size and made each start four times as long
+    as the curve it came from: on seed 123 of ``validation/tol_1e5.py`` the
+    starts beside a corner of a curve of 2,027 segments settled at 2,780,
+    6,160 and 13,286, and those of the second pass, from a curve of 4,243,
+    at 5,318, 12,414 and 28,711 (74 s of 101 s; its seeds 158 and 187 the
+    same).  Down only (the curve always its own level's) left starts short
+    of their geodesic: on ``fig10`` with ``g`` at ``tol=1e-5`` a start beside
+    a corner settled at 789 segments 2.9e-6 (relative) above the same start
+    at 314, and the corner starts' spread took the estimate from 5.4e-6 to
+    1.0e-5 relative (a warning).  Always back up (a V-cycle) grew the curves
+    that cross many vertex lines again (seed 123's second pass to 8,889
+    segments, 81 s).
+    """
+    _grade_and_measure(domain, metric, curves, scale)
+    _settle(domain, metric, curves, scale, tol, max_rounds)
+    own = [(c.X, c.modes, c.length, c.gains) for c in curves]
+    for c in curves:
+        c.history = [c.length]
+    for _ in range(levels - 1):
+        for c in curves:
+            c.X, c.modes = _halved(domain, c.X, c.modes)
+        _grade_and_measure(domain, metric, curves, scale)
+        _settle(domain, metric, curves, scale, tol, max_rounds)
+        for c in curves:
+            c.history.insert(0, c.length)
+    back = [min(c.history[:-1]) < c.history[-1] for c in curves]  # a coarser level settled shorter
+    for c, (X, modes, L, gains), b in zip(curves, own, back):
+        if b:
+            c.history = [c.length]  # the coarsest level's, on the way up
+        else:
+            c.X, c.modes, c.length, c.gains = X, modes, L, gains
+    up = [c for c, b in zip(curves, back) if b]
+    for _ in range(levels - 1 if up else 0):
+        for c in up:
+            c.X, c.modes = _doubled(c.X, c.modes)
+        _grade_and_measure(domain, metric, up, scale)
+        _settle(domain, metric, up, scale, tol, max_rounds)
+        for c in up:
+            c.history.append(c.length)
+
+
+def _doubled(X: np.ndarray, modes: _Modes) -> tuple[np.ndarray, _Modes]:
+    """The polyline with a free midpoint in every segment."""
+    Y = np.empty((2 * len(X) - 1, 2))
+    Y[0::2], Y[1::2] = X, 0.5 * (X[:-1] + X[1:])
+    return Y, modes.doubled()
+
+
 def refine_many(
     domain: Domain,
     metric: Metric,
@@ -1542,8 +1659,8 @@ def refine_many(
         its last level has about ``2 max_segments``, plus a vertex where it
         crosses a vertex line).  A curve whose route already has
         ``max_segments`` segments or more (a start made from a refined
-        curve, kept where its coarse geodesic is longer) stops at its third
-        level.
+        curve, kept where its coarse geodesic is longer) settles at its own
+        vertices, then at every other one, twice (:func:`_levels_down`).
     max_rounds : int
         Rounds of normal moves per level (the normals recomputed each time);
         a level stops earlier when what further rounds could still gain,
@@ -1579,55 +1696,25 @@ def refine_many(
     for job, route in zip(jobs, routes):
         X, modes = _initial_polyline(domain, route, start, job.start_ground, job.end_ground, job.closed)
         curves.append(_Curve(job, X, modes, fine=len(route) - 1 >= max_segments))
-    live = list(curves)
+    fine = [c for c in curves if c.fine]
+    if fine:
+        _levels_down(domain, metric, fine, scale, tol, max_rounds)
+        for c in fine:
+            _finish(c, tol, atol)
+    live = [c for c in curves if not c.fine]
     n = start
     while live:
-        for c in live:
-            if not c.job.closed:
-                c.X, c.modes = _grade_ends(domain, c.X, c.modes, c.job.start_ground, c.job.end_ground, scale)
-        for c, L in zip(live, polyline_lengths(domain, metric, [c.X for c in live])):
-            c.length = L
+        _grade_and_measure(domain, metric, live, scale)
         _settle(domain, metric, live, scale, tol, max_rounds)
         nxt = []
         for c in live:
-            Ln = c.length  # the length of the last round's polyline
-            c.history.append(Ln)
-            h = c.history
-            if len(h) >= 2:
-                # Richardson: with an error ~ n^-2, L_n - L_inf ~ (L_{n/2} - L_n) / 3.  The estimate is the whole
-                # last difference, three times that correction: the first levels are not always asymptotic.
-                diff = h[-2] - h[-1]
-                estimate = abs(diff)
-                if len(h) >= 3:
-                    # a level that barely moves after one that moved a lot has stalled (a kink it cannot cross),
-                    # not converged: with an error ~ n^-2 each change is about a quarter of the one before
-                    prev = abs(h[-3] - h[-2])
-                    estimate = max(estimate, prev / 4.0)
-                    if abs(diff) <= prev:
-                        # changes shrinking slower than n^-2 (a valley narrower than the segments: hairpin with
-                        # g, ratio 0.74, was 1.1e-3 off at tol=1e-3 with an estimate of 6.2e-4): their
-                        # geometric tail, the same as for the rounds' gains (above the last change only when
-                        # it is more than half the one before)
-                        estimate = max(estimate, _remaining_gain([prev, abs(diff)]))
-                # what further rounds could still gain: the optimization of this level may not have finished
-                estimate += _remaining_gain(c.gains)
-                # three levels at least: the change between the first two is often not yet in the asymptotic
-                # range (measured: 3.8e-3 off at tol 1e-3 after two), and the third checks it through the ratio
-                # a route as fine as a last level (a refined curve folded or moved: _crease_starts) doubles from
-                # its own size, so it stops at its third level (one of the limaçon and ellipse's folded starts,
-                # 1,861 vertices, went on through every level to 119,874 in 187 s: validation/folded_starts.py)
-                if ((estimate <= max(tol * abs(h[-1]), atol) or c.fine) and len(h) >= 3) or n >= max_segments:
-                    # the extrapolation stays within [0, Ln]: Ln is the exact length of a curve of the class
-                    c.result = RefinedPath(c.X, min(max(h[-1] - diff / 3.0, 0.0), Ln), Ln, estimate, len(c.X) - 1)
-                    continue
-            elif Ln == 0.0:
+            c.history.append(c.length)  # the length of the last round's polyline
+            if len(c.history) >= 2 and _finish(c, tol, atol, last=n >= max_segments):
+                continue
+            if len(c.history) == 1 and c.length == 0.0:
                 c.result = RefinedPath(c.X, 0.0, 0.0, 0.0, len(c.X) - 1)
                 continue
-            # double: a free midpoint in every segment
-            X = c.X
-            Y = np.empty((2 * len(X) - 1, 2))
-            Y[0::2], Y[1::2] = X, 0.5 * (X[:-1] + X[1:])
-            c.X, c.modes = Y, c.modes.doubled()
+            c.X, c.modes = _doubled(c.X, c.modes)
             nxt.append(c)
         live = nxt
         n *= 2
