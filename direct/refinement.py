@@ -631,9 +631,7 @@ def _initial_polyline(domain: Domain, route: np.ndarray, start: int, start_groun
     """
     X = np.asarray(route, dtype=float)
     while len(X) - 1 < start:
-        Y = np.empty((2 * len(X) - 1, 2))
-        Y[0::2], Y[1::2] = X, 0.5 * (X[:-1] + X[1:])
-        X = Y
+        X = _midpoints(X)
     return _insert_breaks(domain, X, _end_modes(domain, X, start_ground, end_ground, closed))
 
 
@@ -1620,11 +1618,16 @@ def _levels_down(domain: Domain, metric: Metric, curves: list[_Curve], scale: fl
             c.history.append(c.length)
 
 
-def _doubled(X: np.ndarray, modes: _Modes) -> tuple[np.ndarray, _Modes]:
-    """The polyline with a free midpoint in every segment."""
+def _midpoints(X: np.ndarray) -> np.ndarray:
+    """The polyline with the midpoint of every segment put in."""
     Y = np.empty((2 * len(X) - 1, 2))
     Y[0::2], Y[1::2] = X, 0.5 * (X[:-1] + X[1:])
-    return Y, modes.doubled()
+    return Y
+
+
+def _doubled(X: np.ndarray, modes: _Modes) -> tuple[np.ndarray, _Modes]:
+    """The polyline with a free midpoint in every segment (:meth:`_Modes.doubled`)."""
+    return _midpoints(X), modes.doubled()
 
 
 def refine_many(

@@ -10,7 +10,7 @@ from direct.geodesics import grid_distances
 from direct.grid import build_graph
 from direct.metric import get_metric
 from direct.penalty import domains
-from direct.refinement import GeodesicJob, refine, refine_many
+from direct.refinement import GeodesicJob, _midpoints, refine, refine_many
 
 
 def _jobs(scene, resolution=64):
@@ -256,9 +256,7 @@ def test_a_start_made_from_a_refined_curve_keeps_its_own_size():
     first = refine_many(dom, met, jobs[:1], tol=1e-5)[0]
     fine = np.asarray(first.points)
     while len(fine) - 1 < 64:  # a route as fine as a last level for max_segments=64
-        Y = np.empty((2 * len(fine) - 1, 2))
-        Y[0::2], Y[1::2] = fine, 0.5 * (fine[:-1] + fine[1:])
-        fine = Y
+        fine = _midpoints(fine)
     job = GeodesicJob(fine, end_ground=jobs[0].end_ground, coarse=True)
     rp = refine_many(dom, met, [job], tol=1e-14, max_segments=64)[0]  # a tol it cannot reach
     assert len(fine) - 1 <= rp.segments <= len(fine) - 1 + 8  # its own size (the end graded)
@@ -279,9 +277,7 @@ def test_a_fine_start_its_own_level_cannot_settle_goes_back_up_from_a_coarser_on
     first = refine_many(dom, met, jobs[:1], tol=1e-6)[0]
     fine = np.asarray(first.points)
     while len(fine) - 1 < 64:
-        Y = np.empty((2 * len(fine) - 1, 2))
-        Y[0::2], Y[1::2] = fine, 0.5 * (fine[:-1] + fine[1:])
-        fine = Y
+        fine = _midpoints(fine)
     chord = fine[-1] - fine[0]
     normal = np.array([-chord[1], chord[0]])
     bent = fine + 0.02 * np.sin(np.pi * np.linspace(0.0, 1.0, len(fine)))[:, None] * normal
