@@ -729,21 +729,50 @@ def _drop_folds(X: np.ndarray, modes: _Modes) -> tuple[np.ndarray, _Modes]:
     return X, modes
 
 
+def _on_lines(modes: _Modes) -> tuple[np.ndarray, np.ndarray]:
+    """Which vertices slide on a vertex line, and the coordinate that is constant on it (0: ``x1``, 1: ``x2``)."""
+    e = modes.e
+    return (modes.kind == SLIDE) & (e[:, 0] * e[:, 1] == 0), np.where(e[:, 0] == 0.0, 0, 1)
+
+
+def _held_segments(X: np.ndarray, modes: _Modes) -> np.ndarray:
+    """Which segments have both ends held on the same vertex line (a stretch on a crease, :func:`_hold_on_lines`)."""
+    on, axis = _on_lines(modes)
+    k = np.arange(len(X) - 1)
+    return on[:-1] & on[1:] & (axis[:-1] == axis[1:]) & (X[k, axis[:-1]] == X[k + 1, axis[:-1]])
+
+
 def _prune_breaks(X: np.ndarray, modes: _Modes) -> tuple[np.ndarray, _Modes]:
-    """Drop refraction vertices whose neighbours are on the same side of their line.
+    """Drop refraction vertices whose neighbours are on the same side of their line, and those inside a stretch.
 
     Such a vertex only touches the line: the curve no longer crosses it there,
     and holding a vertex on it would keep the curve in a sequence of cells it
-    has left.  :func:`_insert_breaks` adds back the crossings that remain.
+    has left.  :func:`_insert_breaks` adds back the crossings that remain.  A
+    vertex inside a stretch held on its line (both neighbours on it,
+    :func:`_hold_on_lines`) goes too: the straight segment between its
+    neighbours is the same curve.  One at an end of a stretch (one neighbour
+    on the line) stays.  A neighbour within 1e-9 of its segment of the line
+    is on it: a free midpoint 1e-14 off the line beside the end of a stretch
+    0.026 long, taken for a touch, dropped the end, and the segment that
+    replaced the two cut across the crease, 2.2e-5 longer (4e-4 relative;
+    interval seed 263 of ``validation/tol_1e5.py``, its estimate 1.0e-4).
+
+    Setting a touching vertex free instead, where dropping it made the curve
+    longer, left a free vertex on the line, on the kink of the length: on the
+    torus of two 128-gons 0.6 apart of ``validation/closed_searches.py`` the
+    value came out 9.5e-7 (relative) higher, with an estimate of 3.7e-5
+    against 1.5e-5, in 7.7 s against 2.9 s (not kept).
     """
     if len(X) < 3:
         return X, modes
-    e = modes.e[1:-1]
-    on_line = (modes.kind[1:-1] == SLIDE) & (e[:, 0] * e[:, 1] == 0)  # a line of constant x1 or x2
-    axis = np.where(e[:, 0] == 0.0, 0, 1)  # the coordinate that is constant on the line
+    on, axis = _on_lines(modes)
+    on_line, axis = on[1:-1], axis[1:-1]
     k = np.arange(1, len(X) - 1)
     c = X[k, axis]
-    touch = on_line & ((X[k - 1, axis] - c) * (X[k + 1, axis] - c) >= 0)
+    before, after = X[k - 1, axis] - c, X[k + 1, axis] - c
+    seg = np.linalg.norm(np.diff(X, axis=0), axis=1)
+    on_before, on_after = np.abs(before) <= 1e-9 * seg[:-1], np.abs(after) <= 1e-9 * seg[1:]
+    touch = on_line & (((before * after > 0) & ~on_before & ~on_after) | (on_before & on_after))
     if not touch.any():
         return X, modes
     keep = np.ones(len(X), dtype=bool)
@@ -751,19 +780,247 @@ def _prune_breaks(X: np.ndarray, modes: _Modes) -> tuple[np.ndarray, _Modes]:
     return X[keep], modes[keep]
 
 
+def _through(metric: Metric, comps, A: np.ndarray, B: np.ndarray, Ms: list) -> np.ndarray:
+    """Lengths of ``A -> M -> B`` for each array of points ``M`` in ``Ms``, in one evaluation: ``(len(Ms), m)``."""
+    k = len(Ms)
+    L = segment_lengths(metric, comps, np.concatenate([A] * k + list(Ms)), np.concatenate(list(Ms) + [B] * k))
+    L = L.reshape(2, k, len(A))
+    return L[0] + L[1]
+
+
+def _hold_on_lines(metric: Metric, comps, X: np.ndarray, modes: _Modes, near: float = 1e-3,
+                   probe: float = 1e-5) -> tuple[np.ndarray, _Modes]:
+    """Hold on its vertex line a stretch of the polyline that runs along it; let go where leaving it is shorter.
+
+    Where a corner of a component points towards the other point, the
+    metric's norm has a crease along the vertex line, a valley with slopes on
+    both sides, and the geodesic runs in it.  Newton leaves the free
+    vertices of such a stretch a hair off the line on either side (1e-10 of
+    a cell, on seed 123 of ``validation/tol_1e5.py``), and
+    :func:`_insert_breaks` puts a vertex at every crossing: 617 of the 2,027
+    vertices of its chosen curve were on one line, each level grew three
+    times, and the starts made from the curve took 38 s of its 59 s.
+
+    Hold: between two consecutive vertices held on the same line, vertices
+    within ``near`` times the run's mean segment of the line are put on it
+    and slide on it (free ones, and those held on the lines it crosses),
+    when that does not make the curve longer; :func:`_prune_breaks` then
+    drops the vertices inside the stretch, whose straight segment is the
+    same curve, and neither :func:`_insert_breaks` nor :func:`_doubled` put
+    vertices back on it.
+
+    Let go: the midpoint of each segment between two vertices held on the
+    same line is moved off the line by ``probe`` times the segment, on
+    either side; where that is shorter, the line is no valley there, and
+    the moved midpoint is put in, free, for the next round to carry on.
+    Then the stretches grow and shrink at their ends by a vertex a round
+    (:func:`_grow_stretches`, :func:`_unzip_ends`).  Every move is measured
+    with the exact lengths and taken only where the curve gets no longer.
+
+    A vertex that moves across the crease (a free one on it, or one held on
+    a line it crosses) sits on the kink of the length, where Newton's
+    finite-difference Hessian is huge: a level of 515 segments "converged"
+    without moving, its length equal to the level's before, with a
+    Richardson estimate (1.7e-6) below the curve's error (2.1e-6; interval
+    seed 105 of ``validation/tol_1e5.py``, while the vertices on the lines
+    the stretch crosses still slid across it).  The stretch holds none.
+    """
+    n = len(X)
+    if n < 3:
+        return X, modes
+    on, axis = _on_lines(modes)
+    a, b = [], []
+    for ax in (0, 1):  # consecutive vertices held on lines of constant x_ax (those on the others may lie between)
+        idx = np.flatnonzero(on & (axis == ax))
+        same = X[idx[:-1], ax] == X[idx[1:], ax]
+        a.append(idx[:-1][same])
+        b.append(idx[1:][same])
+    a, b = np.concatenate(a), np.concatenate(b)
+    if not len(a):
+        return X, modes
+    # let go: segments on a line (consecutive held vertices)
+    seg_on = a[b == a + 1]
+    insert_at, insert_pts = np.empty(0, dtype=int), np.empty((0, 2))
+    if len(seg_on):
+        P, Q = X[seg_on], X[seg_on + 1]
+        mid = 0.5 * (P + Q)
+        off = np.zeros_like(mid)
+        off[np.arange(len(seg_on)), axis[seg_on]] = probe * np.linalg.norm(Q - P, axis=1)
+        L = _through(metric, comps, P, Q, [mid, mid - off, mid + off])
+        side = np.argmin(L[1:], axis=0)  # 0: below the line, 1: above
+        leave = L[1:].min(axis=0) < L[0]
+        insert_at = seg_on[leave] + 1
+        insert_pts = (mid + np.where(side == 0, -1.0, 1.0)[:, None] * off)[leave]
+    # hold: runs of vertices near the line between two held vertices of it
+    gap = b > a + 1
+    a, b = a[gap], b[gap]
+    Y, new = X, modes
+    if len(a):
+        count = b - a - 1
+        inner = np.repeat(a, count) + 1 + (np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count))
+        run = np.repeat(np.arange(len(a)), count)
+        ax = axis[a][run]
+        v = X[a, axis[a]][run]
+        kind = modes.kind[inner]
+        movable = (kind == FREE) | ((kind == SLIDE) & (modes.e[inner, 1 - ax] == 0.0) & (modes.e[inner, ax] != 0.0))
+        h = np.linalg.norm(X[b] - X[a], axis=1) / (b - a)  # the run's mean segment
+        close = np.abs(X[inner, ax] - v) <= near * h[run]
+        ok = np.ones(len(a), dtype=bool)
+        np.logical_and.at(ok, run, movable & close)
+        Y = X.copy()
+        Y[inner[ok[run]], ax[ok[run]]] = v[ok[run]]
+        # a run is taken only if its segments (a .. b - 1) are not longer on the line
+        n_seg = b - a
+        owner = np.repeat(np.arange(len(a)), n_seg)
+        segs = np.repeat(a, n_seg) + (np.arange(n_seg.sum()) - np.repeat(np.cumsum(n_seg) - n_seg, n_seg))
+        before = np.bincount(owner, segment_lengths(metric, comps, X[segs], X[segs + 1]), minlength=len(a))
+        after = np.bincount(owner, segment_lengths(metric, comps, Y[segs], Y[segs + 1]), minlength=len(a))
+        ok &= after <= before
+        take = ok[run]
+        Y[inner[~take], ax[~take]] = X[inner[~take], ax[~take]]
+        new = modes.copy()
+        # every vertex put on the line slides on it (one held on a crossing line, a cell corner, would move across
+        # the crease, where the length has a kink); inside the stretch they go (:func:`_prune_breaks`), and no
+        # vertex is put back where the stretch crosses lines (:func:`_insert_breaks`)
+        free = inner[take]
+        fax = ax[take]
+        new.kind[free] = SLIDE
+        new.e[free] = 0.0
+        new.e[free, 1 - fax] = 1.0
+        new.base[free] = 0.0
+        new.base[free, fax] = Y[free, fax]
+        new.lo[free], new.hi[free] = -np.inf, np.inf
+    Y, new = _grow_stretches(metric, comps, Y, new)
+    Y, new = _unzip_ends(metric, comps, Y, new, probe, insert_at - 1)
+    if len(insert_at):
+        Y = np.insert(Y, insert_at, insert_pts, axis=0)
+        new = new.insert(insert_at, _Modes.free(len(insert_at)))
+    return Y, new
+
+
+def _unzip_ends(metric: Metric, comps, X: np.ndarray, modes: _Modes, probe: float,
+                busy=()) -> tuple[np.ndarray, _Modes]:
+    """Set free, moved off its line, the end of a stretch held on a line, where that makes the curve shorter.
+
+    The other half of :func:`_grow_stretches`.  Two vertices held on the same
+    line can also come from a curve that crosses it at a shallow angle (a
+    vertex line crossed twice in a row, at a coarser level); the midpoint
+    probe of :func:`_hold_on_lines` cannot see that the segment should turn
+    (one end to either side), and the curve stayed on the line: on the torus
+    of two 128-gons 0.6 apart of ``validation/closed_searches.py`` (default
+    ``tol``) the value came out 2.2e-5 (relative) above the exact length of
+    the curves found with this, beyond its estimate (1.9e-5); on the one of
+    two 128-gons 0.3 apart, 1.2e-5 above (estimate 1.2e-4).  Each
+    round, an end (one neighbour held on the same line, the other not) is
+    moved off the line by ``probe`` times its held segment, to the side where
+    its two segments are shorter, and set free; the stretch then shrinks by
+    a vertex at each end where the curve does not follow the crease.  Not
+    the ends of the segments ``busy`` (whose midpoints leave the line).
+    """
+    n = len(X)
+    if n < 3:
+        return X, modes
+    held = _held_segments(X, modes)
+    held[np.asarray(busy, dtype=int)] = False
+    before, after = np.concatenate([[False], held]), np.concatenate([held, [False]])  # per vertex
+    end = before ^ after
+    end[0] = end[-1] = False
+    k = np.flatnonzero(end)
+    if not len(k):
+        return X, modes
+    _, axis = _on_lines(modes)
+    ax = axis[k]
+    h = np.where(before[k], np.linalg.norm(X[k] - X[k - 1], axis=1), np.linalg.norm(X[k + 1] - X[k], axis=1))
+    off = np.zeros((len(k), 2))
+    off[np.arange(len(k)), ax] = probe * h
+    L = _through(metric, comps, X[k - 1], X[k + 1], [X[k], X[k] - off, X[k] + off])
+    where = X[k] + np.where(np.argmin(L[1:], axis=0) == 0, -1.0, 1.0)[:, None] * off
+    take = L[1:].min(axis=0) < L[0]
+    take[1:] &= ~(take[:-1] & (np.diff(k) == 1))  # not both ends of one held segment at once
+    if not take.any():
+        return X, modes
+    X = X.copy()
+    X[k[take]] = where[take]
+    modes = modes.copy()
+    modes.kind[k[take]] = FREE
+    return X, modes
+
+
+def _grow_stretches(metric: Metric, comps, X: np.ndarray, modes: _Modes) -> tuple[np.ndarray, _Modes]:
+    """Put on the line the free vertex beside a vertex held on it, where that makes the curve shorter.
+
+    A geodesic joins a crease tangentially, so the free vertices beside the
+    end of a stretch approach the line only slowly, and the end itself
+    slides along it where the length barely changes.  Each round, the free
+    neighbour of a vertex held on a line (not between two vertices held on
+    it: :func:`_hold_on_lines`' runs) is put on that line if its two
+    segments get shorter (exact lengths); the stretch then grows by a vertex
+    at each end where the curve follows the crease (:func:`_unzip_ends`
+    shrinks it).  Without this, at ``tol=1e-5``: interval seed 203 of
+    ``validation/tol_1e5.py`` took 3.9 s against 1.8 s, its estimate 7.3e-6
+    against 3.5e-6 (relative), seed 218 warned (1.6e-5 against 1.0e-5), and
+    the torus of two 128-gons 0.6 apart of ``validation/closed_searches.py``
+    (default ``tol``) came out 1.8e-6 higher, its curves' exact length too.
+    """
+    n = len(X)
+    if n < 3:
+        return X, modes
+    on, axis = _on_lines(modes)
+    j = np.arange(1, n - 1)
+    tries, cands = [], []
+    for nb in (j - 1, j + 1):  # a neighbour held on a line: the free vertex put on that line
+        other = 2 * j - nb
+        ax = axis[nb]
+        v = X[nb, ax]
+        cands.append((modes.kind[j] == FREE) & on[nb] & ~(on[other] & (axis[other] == ax) & (X[other, ax] == v)))
+        Y = X[j].copy()
+        Y[np.arange(n - 2), ax] = v
+        tries.append(Y)
+    some = cands[0] | cands[1]
+    if not some.any():
+        return X, modes
+    j = j[some]
+    tries = [Y[some] for Y in tries]
+    L = _through(metric, comps, X[j - 1], X[j + 1], [X[j]] + tries)
+    gain = np.where(np.vstack([c[some] for c in cands]), L[0] - L[1:], 0.0)
+    pick = np.argmax(gain, axis=0)
+    take = gain.max(axis=0) > 0.0
+    take[1:] &= ~(take[:-1] & (np.diff(j) == 1))  # not two neighbours at once (they share a segment)
+    if not take.any():
+        return X, modes
+    k = j[take]
+    Y = np.where((pick[take] == 0)[:, None], tries[0][take], tries[1][take])
+    ax = np.where(pick[take] == 0, axis[k - 1], axis[k + 1])
+    X = X.copy()
+    X[k] = Y
+    modes = modes.copy()
+    modes.kind[k] = SLIDE
+    modes.e[k] = 0.0
+    modes.e[k, 1 - ax] = 1.0
+    modes.base[k] = 0.0
+    modes.base[k, ax] = X[k, ax]
+    modes.lo[k], modes.hi[k] = -np.inf, np.inf
+    return X, modes
+
+
 def _insert_breaks(domain: Domain, X: np.ndarray, modes: _Modes) -> tuple[np.ndarray, _Modes]:
     """Add a sliding vertex where the polyline crosses a vertex parameter of either component.
 
     There the metric's norm jumps and the geodesic refracts; with a vertex on
     the line, every segment stays in one cell, where the length is smooth.
+    Not on a segment held on a vertex line (a stretch on a crease,
+    :func:`_hold_on_lines`): it only moves along its line, its length is
+    smooth in its ends, and a vertex where it crosses another line would
+    slide across the crease, on the kink of the length.
     """
     P, Q = X[:-1], X[1:]
+    held = _held_segments(X, modes)  # a stretch on a crease: exact as it is (:func:`_hold_on_lines`)
     new_t, new_seg, new_axis = [], [], []
     for axis, comp in enumerate(domain.comps):
         u0, u1 = P[:, axis], Q[:, axis]
         vp = _vertex_params(comp, float(min(u0.min(), u1.min())), float(max(u0.max(), u1.max())))
         seg, t = _breaks(vp, u0, u1)
-        keep = (t > 1e-9) & (t < 1 - 1e-9)
+        keep = (t > 1e-9) & (t < 1 - 1e-9) & ~held[seg]
         new_t.append(t[keep])
         new_seg.append(seg[keep])
         new_axis.append(np.full(keep.sum(), axis))
@@ -1486,7 +1743,8 @@ def _settle(domain: Domain, metric: Metric, curves: list[_Curve], scale: float, 
         outs = _optimize_many(domain, metric, [(c.X, _normal_modes(c.X, c.modes, c.job.closed, speed_at), c.job.shift,
                                                 c.modes) for c in todo], scale)
         for c, (X, _) in zip(todo, outs):
-            X, modes = _insert_breaks(domain, *_prune_breaks(*_merge_collapsed(*_drop_folds(X, c.modes))))
+            X, modes = _hold_on_lines(metric, domain.comps, *_merge_collapsed(*_drop_folds(X, c.modes)))
+            X, modes = _insert_breaks(domain, *_prune_breaks(X, modes))
             X, modes = _truncate_ends(domain, X, modes, c.job.start_ground, c.job.end_ground)
             if c.job.end_ground is not None:
                 modes = _corner_switch(domain, metric, X, modes, len(X) - 1)
@@ -1626,8 +1884,20 @@ def _midpoints(X: np.ndarray) -> np.ndarray:
 
 
 def _doubled(X: np.ndarray, modes: _Modes) -> tuple[np.ndarray, _Modes]:
-    """The polyline with a free midpoint in every segment (:meth:`_Modes.doubled`)."""
-    return _midpoints(X), modes.doubled()
+    """The polyline with a free midpoint in every segment (:meth:`_Modes.doubled`) but those held on a line.
+
+    A segment whose two ends are held on the same vertex line lies on a crease
+    (:func:`_hold_on_lines`, which tests whether it should leave the line): it
+    is exact as it is, and a free midpoint on it would sit on the kink of the
+    length.
+    """
+    Y, doubled = _midpoints(X), modes.doubled()
+    held = _held_segments(X, modes)
+    if not held.any():
+        return Y, doubled
+    keep = np.ones(len(Y), dtype=bool)
+    keep[1::2] = ~held
+    return Y[keep], doubled[keep]
 
 
 def refine_many(

@@ -3,6 +3,8 @@
 import numpy as np
 import pytest
 from conftest import random_crossing_scene
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import direct
 from direct.crossings import find_crossings
@@ -318,3 +320,119 @@ def test_newton_damping_beside_a_kink_still_steps():
                    kinks=lambda X, X_trial: np.array([0]))
     assert abs(X[0] - 0.9) < 1e-3
     assert length(X) - 1e8 < 0.0051
+
+
+def _crease(below: bool = True):
+    """The pair domain of a V, corner ``(0, 0)``, and a straight segment below it (or above it, inside the V).
+
+    Below, the corner is the nearest point of the V to every point of the segment: ``G``'s norm ``|y1 - y2|^2``
+    has a valley along the vertex line ``x1 = sqrt(2)`` (a minimum with slopes on both sides).  Above, inside
+    the V, the corner is the farthest point nearby: a crest.  Reference = deformed: parameters are arclengths.
+    """
+    from direct.grid import Domain
+
+    V = [[-1.0, 1.0], [0.0, 0.0], [1.0, 1.0]]
+    S = [[-0.5, -1.0], [0.5, -1.0]] if below else [[-0.5, 2.0], [0.5, 2.0]]
+    scene = direct.Scene.from_dict({"components": [{"name": "V", "closed": False, "reference": V, "deformed": V},
+                                                   {"name": "S", "closed": False, "reference": S, "deformed": S}]})
+    return Domain((0, 1), tuple(scene.components), np.empty((0, 2)), np.empty(0, dtype=int), np.empty(0, dtype=int))
+
+
+def test_a_geodesic_along_a_crease_has_its_exact_length():
+    """Between two points of the crease line ``x1 = sqrt(2)`` the geodesic is the line itself: for every ``x1``,
+    ``|y1 - y2| >= |(0, 0) - y2|``, so any curve is at least ``int |y2(s)|^2 ds`` along the line.  From
+    ``x2 = 0.1`` to ``0.9`` (``y2 = (s - 1/2, -1)``) that is ``2 (u^3 / 3 + u)``, ``u = 0.4``.  The refinement,
+    from a route bowed 0.3 off the line, finds it to rounding, within its estimate."""
+    dom, met = _crease(), get_metric("G")
+    v = np.sqrt(2.0)
+    t = np.linspace(0.0, 1.0, 17)
+    route = np.column_stack([v + 0.3 * np.sin(np.pi * t), 0.1 + 0.8 * t])
+    exact = 2.0 * (0.4**3 / 3.0 + 0.4)
+    for tol in (1e-3, 1e-8):
+        rp = refine(dom, met, route, tol=tol)
+        assert abs(rp.length - exact) <= max(rp.error_estimate, 1e-12 * exact)
+        assert abs(rp.length - exact) <= 1e-11 * exact
+        assert rp.upper >= exact * (1.0 - 1e-14)  # a real curve
+
+
+def test_a_geodesic_that_runs_along_a_crease_is_held_on_its_line():
+    """From ``(sqrt(2) - 0.05, 0)`` to ``(sqrt(2) + 0.05, 1)`` the geodesic joins the crease line, runs along it
+    and leaves it.  Newton left the free vertices of that stretch a hair off the line on either side, with a
+    vertex at every crossing: at ``tol=1e-7`` 1,907 segments, 428 vertices on the line, 8.5 s, and an estimate of
+    1.3e-6 relative (it could not meet ``tol``; stop 41's code).  Held on the line, the stretch is one straight
+    segment: 641 segments, 2 vertices on the line (where the curve joins and leaves it), 0.14 s, estimate 8.4e-8,
+    and the exact length of the polyline itself 1.5e-7 (relative) below the zigzag's extrapolated length.  The
+    looser tolerances agree with it within their estimates."""
+    dom, met = _crease(), get_metric("G")
+    v = np.sqrt(2.0)
+    t = np.linspace(0.0, 1.0, 17)
+    route = np.column_stack([v - 0.05 + 0.1 * t + 0.1 * np.sin(np.pi * t), t])
+    tight = refine(dom, met, route, tol=1e-7)
+    on_line = int((np.abs(tight.points[:, 0] - v) < 1e-12).sum())
+    assert on_line <= 4
+    assert tight.segments < 1100  # about 2 max_segments: no vertex at every crossing of the line
+    assert tight.error_estimate <= 1e-7 * tight.length
+    for tol in (1e-3, 1e-5):
+        rp = refine(dom, met, route, tol=tol)
+        assert abs(rp.length - tight.length) <= rp.error_estimate + tight.error_estimate
+
+
+def test_hold_on_lines_holds_a_valley_and_lets_go_of_a_crest():
+    """``_hold_on_lines`` between two fixed ends on the line ``x1 = sqrt(2)``.  In the valley, free vertices a hair
+    off the line between vertices held on it are put on it, and so is the last one, beside a held vertex (the
+    stretch grows): :func:`_prune_breaks` then leaves one segment on the line.  On the crest the hairs stay where
+    they are (the line is longer), and a segment held on the line gets a free midpoint moved off it, to the side
+    where the curve is shorter."""
+    from direct.metric import segment_lengths
+    from direct.refinement import FREE, SLIDE, _hold_on_lines, _prune_breaks
+
+    v = np.sqrt(2.0)
+    line = (np.array([v, 0.0]), np.array([0.0, 1.0]), -np.inf, np.inf)
+    x2 = np.linspace(0.1, 0.9, 9)
+    hair = np.array([0.0, 1e-10, 0.0, -2e-10, 0.0, 3e-10, -1e-10, 0.0, 1e-10])
+    X = np.vstack([[[v, 0.0]], np.column_stack([v + hair, x2]), [[v, 1.0]]])
+    spec = ["fixed"] + [line if h == 0.0 else "free" for h in hair] + ["fixed"]
+    met = get_metric("G")
+    for below in (True, False):
+        dom = _crease(below)
+        Y, ymodes = _hold_on_lines(met, dom.comps, X, _modes(spec))
+        if below:
+            assert np.all(Y[:, 0] == v) and np.all(ymodes.kind[1:-1] == SLIDE)
+            before = segment_lengths(met, dom.comps, X[:-1], X[1:]).sum()
+            assert segment_lengths(met, dom.comps, Y[:-1], Y[1:]).sum() <= before
+            Z, _ = _prune_breaks(Y, ymodes)
+            np.testing.assert_array_equal(Z, Y[[0, -1]])  # the whole stretch is one segment on the line
+        else:
+            # on the crest the hairs are not put on the line (it is longer there); no segment lies on the line
+            np.testing.assert_array_equal(Y, X)
+            held = np.column_stack([np.full(3, v), [0.2, 0.5, 0.8]])
+            H = np.vstack([[[v, 0.0]], held, [[v, 1.0]]])
+            W, wmodes = _hold_on_lines(met, dom.comps, H, _modes(["fixed", line, line, line, "fixed"]))
+            assert len(W) == 7 and list(wmodes.kind) == [0, SLIDE, FREE, SLIDE, FREE, SLIDE, 0]
+            assert W[2, 0] != v and W[4, 0] != v
+            longer = segment_lengths(met, dom.comps, H[:-1], H[1:]).sum()
+            assert segment_lengths(met, dom.comps, W[:-1], W[1:]).sum() < longer
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.sampled_from([0.0, 1e-10, -1e-10, 1e-6, -1e-6, 0.05, -0.05]), min_size=2, max_size=12),
+       st.booleans(), st.sampled_from([0.0, 0.05, -0.2]))
+def test_hold_on_lines_never_makes_a_curve_longer(offsets, below, end_offset):
+    """Whatever the vertices beside the line ``x1 = sqrt(2)`` (held on it where the offset is 0, free elsewhere)
+    and whichever side the other curve lies (a valley or a crest), ``_hold_on_lines`` keeps the ends, keeps every
+    vertex held on a line exactly on it, and never makes the curve longer (each move is measured)."""
+    from direct.metric import segment_lengths
+    from direct.refinement import _hold_on_lines, _on_lines
+
+    v = np.sqrt(2.0)
+    line = (np.array([v, 0.0]), np.array([0.0, 1.0]), -np.inf, np.inf)
+    x2 = np.linspace(0.0, 1.0, len(offsets) + 2)
+    X = np.column_stack([v + np.concatenate([[end_offset], offsets, [-end_offset]]), x2])
+    modes = _modes(["fixed"] + [line if o == 0.0 else "free" for o in offsets] + ["fixed"])
+    dom, met = _crease(below), get_metric("G")
+    Y, ymodes = _hold_on_lines(met, dom.comps, X, modes)
+    np.testing.assert_array_equal(Y[[0, -1]], X[[0, -1]])
+    on, axis = _on_lines(ymodes)
+    assert np.all(Y[on, 0] == v)
+    before = segment_lengths(met, dom.comps, X[:-1], X[1:]).sum()
+    assert segment_lengths(met, dom.comps, Y[:-1], Y[1:]).sum() <= before * (1.0 + 1e-15)
