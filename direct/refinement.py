@@ -218,6 +218,15 @@ class _Modes:
             getattr(out, a)[0::2] = getattr(self, a)
         return out
 
+    def hold(self, k: np.ndarray, axis: np.ndarray, coord: np.ndarray) -> None:
+        """Let vertices ``k`` slide (in place) on the lines ``x_axis = coord`` (vertex lines, no bounds)."""
+        self.kind[k] = SLIDE
+        self.e[k] = 0.0
+        self.e[k, 1 - axis] = 1.0
+        self.base[k] = 0.0
+        self.base[k, axis] = coord
+        self.lo[k], self.hi[k] = -np.inf, np.inf
+
     def set(self, k: int, kind: int, base=None, e=None, lo: float = -np.inf, hi: float = np.inf):
         """Set the mode of vertex ``k`` in place."""
         self.kind[k] = kind
@@ -730,9 +739,15 @@ def _drop_folds(X: np.ndarray, modes: _Modes) -> tuple[np.ndarray, _Modes]:
 
 
 def _on_lines(modes: _Modes) -> tuple[np.ndarray, np.ndarray]:
-    """Which vertices slide on a vertex line, and the coordinate that is constant on it (0: ``x1``, 1: ``x2``)."""
+    """Which vertices slide on a vertex line, and the coordinate that is constant on it (0: ``x1``, 1: ``x2``).
+
+    Interior vertices only: the ends of a curve are crossing points, or slide
+    on the boundary (whose sides are lines of constant ``x1`` or ``x2`` too).
+    """
     e = modes.e
-    return (modes.kind == SLIDE) & (e[:, 0] * e[:, 1] == 0), np.where(e[:, 0] == 0.0, 0, 1)
+    on = (modes.kind == SLIDE) & (e[:, 0] * e[:, 1] == 0)
+    on[[0, -1]] = False
+    return on, np.where(e[:, 0] == 0.0, 0, 1)
 
 
 def _held_segments(X: np.ndarray, modes: _Modes) -> np.ndarray:
@@ -748,7 +763,7 @@ def _prune_breaks(X: np.ndarray, modes: _Modes) -> tuple[np.ndarray, _Modes]:
     Such a vertex only touches the line: the curve no longer crosses it there,
     and holding a vertex on it would keep the curve in a sequence of cells it
     has left.  :func:`_insert_breaks` adds back the crossings that remain.  A
-    vertex inside a stretch held on its line (both neighbours on it,
+    vertex inside a stretch held on its line (both neighbours on the line,
     :func:`_hold_on_lines`) goes too: the straight segment between its
     neighbours is the same curve.  One at an end of a stretch (one neighbour
     on the line) stays.  A neighbour within 1e-9 of its segment of the line
@@ -801,10 +816,11 @@ def _hold_on_lines(metric: Metric, comps, X: np.ndarray, modes: _Modes, near: fl
     vertices of its chosen curve were on one line, each level grew three
     times, and the starts made from the curve took 38 s of its 59 s.
 
-    Hold: between two consecutive vertices held on the same line, vertices
-    within ``near`` times the run's mean segment of the line are put on it
-    and slide on it (free ones, and those held on the lines it crosses),
-    when that does not make the curve longer; :func:`_prune_breaks` then
+    Hold: the vertices between two consecutive vertices held on the same
+    line are put on it and slide on it (free ones, and those held on the
+    lines it crosses) when every one of them is within ``near`` times the
+    run's chord over its number of segments of the line and the run's exact
+    length does not grow; :func:`_prune_breaks` then
     drops the vertices inside the stretch, whose straight segment is the
     same curve, and neither :func:`_insert_breaks` nor :func:`_doubled` put
     vertices back on it.
@@ -863,10 +879,17 @@ def _hold_on_lines(metric: Metric, comps, X: np.ndarray, modes: _Modes, near: fl
         v = X[a, axis[a]][run]
         kind = modes.kind[inner]
         movable = (kind == FREE) | ((kind == SLIDE) & (modes.e[inner, 1 - ax] == 0.0) & (modes.e[inner, ax] != 0.0))
-        h = np.linalg.norm(X[b] - X[a], axis=1) / (b - a)  # the run's mean segment
+        h = np.linalg.norm(X[b] - X[a], axis=1) / (b - a)  # the run's chord over its number of segments
         close = np.abs(X[inner, ax] - v) <= near * h[run]
+        # runs that share a vertex (a curve that turns at a cell corner from one line onto the other), or move
+        # the end of another run or of a segment let go, are left as they are: each run taken is then measured
+        # alone, and a vertex slides on one line only
+        ends = np.zeros(n, dtype=bool)
+        ends[a] = ends[b] = True
+        ends[insert_at - 1] = ends[insert_at] = True
+        alone = (np.bincount(inner, minlength=n)[inner] == 1) & ~ends[inner]
         ok = np.ones(len(a), dtype=bool)
-        np.logical_and.at(ok, run, movable & close)
+        np.logical_and.at(ok, run, movable & close & alone)
         Y = X.copy()
         Y[inner[ok[run]], ax[ok[run]]] = v[ok[run]]
         # a run is taken only if its segments (a .. b - 1) are not longer on the line
@@ -882,14 +905,7 @@ def _hold_on_lines(metric: Metric, comps, X: np.ndarray, modes: _Modes, near: fl
         # every vertex put on the line slides on it (one held on a crossing line, a cell corner, would move across
         # the crease, where the length has a kink); inside the stretch they go (:func:`_prune_breaks`), and no
         # vertex is put back where the stretch crosses lines (:func:`_insert_breaks`)
-        free = inner[take]
-        fax = ax[take]
-        new.kind[free] = SLIDE
-        new.e[free] = 0.0
-        new.e[free, 1 - fax] = 1.0
-        new.base[free] = 0.0
-        new.base[free, fax] = Y[free, fax]
-        new.lo[free], new.hi[free] = -np.inf, np.inf
+        new.hold(inner[take], ax[take], v[take])
     Y, new = _grow_stretches(metric, comps, Y, new)
     Y, new = _unzip_ends(metric, comps, Y, new, probe, insert_at - 1)
     if len(insert_at):
@@ -921,10 +937,11 @@ def _unzip_ends(metric: Metric, comps, X: np.ndarray, modes: _Modes, probe: floa
     if n < 3:
         return X, modes
     held = _held_segments(X, modes)
-    held[np.asarray(busy, dtype=int)] = False
     before, after = np.concatenate([[False], held]), np.concatenate([held, [False]])  # per vertex
     end = before ^ after
     end[0] = end[-1] = False
+    busy = np.asarray(busy, dtype=int)
+    end[busy] = end[busy + 1] = False
     k = np.flatnonzero(end)
     if not len(k):
         return X, modes
@@ -994,12 +1011,7 @@ def _grow_stretches(metric: Metric, comps, X: np.ndarray, modes: _Modes) -> tupl
     X = X.copy()
     X[k] = Y
     modes = modes.copy()
-    modes.kind[k] = SLIDE
-    modes.e[k] = 0.0
-    modes.e[k, 1 - ax] = 1.0
-    modes.base[k] = 0.0
-    modes.base[k, ax] = X[k, ax]
-    modes.lo[k], modes.hi[k] = -np.inf, np.inf
+    modes.hold(k, ax, X[k, ax])
     return X, modes
 
 

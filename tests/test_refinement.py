@@ -421,7 +421,6 @@ def test_hold_on_lines_never_makes_a_curve_longer(offsets, below, end_offset):
     """Whatever the vertices beside the line ``x1 = sqrt(2)`` (held on it where the offset is 0, free elsewhere)
     and whichever side the other curve lies (a valley or a crest), ``_hold_on_lines`` keeps the ends, keeps every
     vertex held on a line exactly on it, and never makes the curve longer (each move is measured)."""
-    from direct.metric import segment_lengths
     from direct.refinement import _hold_on_lines, _on_lines
 
     v = np.sqrt(2.0)
@@ -431,8 +430,54 @@ def test_hold_on_lines_never_makes_a_curve_longer(offsets, below, end_offset):
     modes = _modes(["fixed"] + [line if o == 0.0 else "free" for o in offsets] + ["fixed"])
     dom, met = _crease(below), get_metric("G")
     Y, ymodes = _hold_on_lines(met, dom.comps, X, modes)
+    _check_held(met, dom, X, Y, ymodes)
+    assert np.all(Y[_on_lines(ymodes)[0], 0] == v)
+
+
+def _check_held(met, dom, X, Y, ymodes):
+    """What ``_hold_on_lines`` must keep: the ends, one mode per vertex, every sliding vertex on an axis line
+    and exactly on it, and a curve no longer than before."""
+    from direct.metric import segment_lengths
+    from direct.refinement import SLIDE
+
     np.testing.assert_array_equal(Y[[0, -1]], X[[0, -1]])
-    on, axis = _on_lines(ymodes)
-    assert np.all(Y[on, 0] == v)
+    assert len(ymodes) == len(Y)
+    k = np.flatnonzero(ymodes.kind == SLIDE)
+    e, base = ymodes.e[k], ymodes.base[k]
+    assert np.all(e[:, 0] * e[:, 1] == 0.0) and np.all(np.abs(e).sum(axis=1) == 1.0)
+    axis = np.where(e[:, 0] == 0.0, 0, 1)
+    np.testing.assert_array_equal(Y[k, axis], base[np.arange(len(k)), axis])
     before = segment_lengths(met, dom.comps, X[:-1], X[1:]).sum()
     assert segment_lengths(met, dom.comps, Y[:-1], Y[1:]).sum() <= before * (1.0 + 1e-15)
+
+
+def test_hold_on_lines_leaves_runs_that_share_a_vertex_at_a_cell_corner():
+    """A curve that turns at a cell corner from the line ``x1 = v`` onto ``x2 = w``: the vertices between
+    two held on ``x1 = v`` and those between two held on ``x2 = w`` overlap.  Holding both runs gave the
+    shared vertex a direction along neither line, ``(1, 1)`` (a review); such runs are left as they are."""
+    from direct.refinement import _hold_on_lines
+
+    dom, met = _crease(True), get_metric("G")
+    v, w = np.sqrt(2.0), 0.5
+    on_v = (np.array([v, 0.0]), np.array([0.0, 1.0]), -np.inf, np.inf)
+    on_w = (np.array([0.0, w]), np.array([1.0, 0.0]), -np.inf, np.inf)
+    X = np.array([[v, 0.0], [v, 0.1], [v + 1e-5, w], [v + 1e-10, w + 1e-10], [v, w + 1e-5], [v + 0.3, w],
+                  [v + 0.4, 0.9]])
+    Y, ymodes = _hold_on_lines(met, dom.comps, X, _modes(["fixed", on_v, on_w, "free", on_v, on_w, "fixed"]))
+    _check_held(met, dom, X, Y, ymodes)
+
+
+def test_unzip_ends_leaves_the_ends_of_a_segment_let_go():
+    """``_unzip_ends`` frees the end of a stretch where leaving the line is shorter (on the crest), but not an
+    end of a segment whose midpoint already leaves (``busy``): that move was measured with the end in place."""
+    from direct.refinement import FREE, _unzip_ends
+
+    dom, met = _crease(False), get_metric("G")
+    v = np.sqrt(2.0)
+    line = (np.array([v, 0.0]), np.array([0.0, 1.0]), -np.inf, np.inf)
+    X = np.column_stack([[v - 0.1, v, v, v, v, v + 0.1], [0.0, 0.2, 0.4, 0.6, 0.8, 1.0]])
+    spec = ["fixed", line, line, line, line, "fixed"]  # held segments 1-2, 2-3, 3-4; ends 1 and 4
+    _, free_modes = _unzip_ends(met, dom.comps, X, _modes(spec), 1e-5)
+    assert set(np.flatnonzero(free_modes.kind == FREE)) & {1, 4}
+    _, busy_modes = _unzip_ends(met, dom.comps, X, _modes(spec), 1e-5, busy=[1, 3])
+    assert not (busy_modes.kind == FREE).any()  # 1 and 4 are ends of busy segments 1-2 and 3-4
