@@ -803,6 +803,26 @@ def _through(metric: Metric, comps, A: np.ndarray, B: np.ndarray, Ms: list) -> n
     return L[0] + L[1]
 
 
+def _ranges(start: np.ndarray, count: np.ndarray) -> np.ndarray:
+    """``start[i], start[i] + 1, ..., start[i] + count[i] - 1`` for every ``i``, concatenated."""
+    return np.repeat(start - np.cumsum(count) + count, count) + np.arange(count.sum())
+
+
+def _off_line(metric: Metric, comps, A: np.ndarray, M: np.ndarray, B: np.ndarray, axis: np.ndarray,
+              step: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Probe each vertex ``M`` (between ``A`` and ``B``) off its line: ``(shorter, where)``.
+
+    ``M`` is moved by ``step`` across its line of constant ``x_axis``, either
+    way; ``shorter`` says whether ``A -> M -> B`` gets shorter on the better
+    side, and ``where`` is the moved vertex on that side.
+    """
+    off = np.zeros((len(M), 2))
+    off[np.arange(len(M)), axis] = step
+    L = _through(metric, comps, A, B, [M, M - off, M + off])
+    where = M + np.where(np.argmin(L[1:], axis=0) == 0, -1.0, 1.0)[:, None] * off
+    return L[1:].min(axis=0) < L[0], where
+
+
 def _hold_on_lines(metric: Metric, comps, X: np.ndarray, modes: _Modes, near: float = 1e-3,
                    probe: float = 1e-5) -> tuple[np.ndarray, _Modes]:
     """Hold on its vertex line a stretch of the polyline that runs along it; let go where leaving it is shorter.
@@ -855,25 +875,20 @@ def _hold_on_lines(metric: Metric, comps, X: np.ndarray, modes: _Modes, near: fl
     if not len(a):
         return X, modes
     # let go: segments on a line (consecutive held vertices)
-    seg_on = a[b == a + 1]
+    seg_on = np.flatnonzero(_held_segments(X, modes))
     insert_at, insert_pts = np.empty(0, dtype=int), np.empty((0, 2))
     if len(seg_on):
         P, Q = X[seg_on], X[seg_on + 1]
-        mid = 0.5 * (P + Q)
-        off = np.zeros_like(mid)
-        off[np.arange(len(seg_on)), axis[seg_on]] = probe * np.linalg.norm(Q - P, axis=1)
-        L = _through(metric, comps, P, Q, [mid, mid - off, mid + off])
-        side = np.argmin(L[1:], axis=0)  # 0: below the line, 1: above
-        leave = L[1:].min(axis=0) < L[0]
-        insert_at = seg_on[leave] + 1
-        insert_pts = (mid + np.where(side == 0, -1.0, 1.0)[:, None] * off)[leave]
+        leave, where = _off_line(metric, comps, P, 0.5 * (P + Q), Q, axis[seg_on],
+                                 probe * np.linalg.norm(Q - P, axis=1))
+        insert_at, insert_pts = seg_on[leave] + 1, where[leave]
     # hold: runs of vertices near the line between two held vertices of it
     gap = b > a + 1
     a, b = a[gap], b[gap]
     Y, new = X, modes
     if len(a):
         count = b - a - 1
-        inner = np.repeat(a, count) + 1 + (np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count))
+        inner = _ranges(a + 1, count)
         run = np.repeat(np.arange(len(a)), count)
         ax = axis[a][run]
         v = X[a, axis[a]][run]
@@ -895,7 +910,7 @@ def _hold_on_lines(metric: Metric, comps, X: np.ndarray, modes: _Modes, near: fl
         # a run is taken only if its segments (a .. b - 1) are not longer on the line
         n_seg = b - a
         owner = np.repeat(np.arange(len(a)), n_seg)
-        segs = np.repeat(a, n_seg) + (np.arange(n_seg.sum()) - np.repeat(np.cumsum(n_seg) - n_seg, n_seg))
+        segs = _ranges(a, n_seg)
         before = np.bincount(owner, segment_lengths(metric, comps, X[segs], X[segs + 1]), minlength=len(a))
         after = np.bincount(owner, segment_lengths(metric, comps, Y[segs], Y[segs + 1]), minlength=len(a))
         ok &= after <= before
@@ -948,11 +963,7 @@ def _unzip_ends(metric: Metric, comps, X: np.ndarray, modes: _Modes, probe: floa
     _, axis = _on_lines(modes)
     ax = axis[k]
     h = np.where(before[k], np.linalg.norm(X[k] - X[k - 1], axis=1), np.linalg.norm(X[k + 1] - X[k], axis=1))
-    off = np.zeros((len(k), 2))
-    off[np.arange(len(k)), ax] = probe * h
-    L = _through(metric, comps, X[k - 1], X[k + 1], [X[k], X[k] - off, X[k] + off])
-    where = X[k] + np.where(np.argmin(L[1:], axis=0) == 0, -1.0, 1.0)[:, None] * off
-    take = L[1:].min(axis=0) < L[0]
+    take, where = _off_line(metric, comps, X[k - 1], X[k], X[k + 1], ax, probe * h)
     take[1:] &= ~(take[:-1] & (np.diff(k) == 1))  # not both ends of one held segment at once
     if not take.any():
         return X, modes
@@ -1048,10 +1059,8 @@ def _insert_breaks(domain: Domain, X: np.ndarray, modes: _Modes) -> tuple[np.nda
     dup[1:] = (seg[1:] == seg[:-1]) & (t[1:] - t[:-1] < 1e-9)
     t, seg, axis = t[~dup], seg[~dup], axis[~dup]
     pts = P[seg] + t[:, None] * (Q[seg] - P[seg])
-    e = np.zeros((len(seg), 2))
-    e[np.arange(len(seg)), 1 - axis] = 1.0  # along the line of constant x_axis
-    m = len(seg)
-    lines = _Modes(np.full(m, SLIDE, dtype=np.int8), pts * (1 - e), e, np.full(m, -np.inf), np.full(m, np.inf))
+    lines = _Modes.free(len(seg))
+    lines.hold(np.arange(len(seg)), axis, pts[np.arange(len(seg)), axis])  # along the line of constant x_axis
     return np.insert(X, seg + 1, pts, axis=0), modes.insert(seg + 1, lines)
 
 
