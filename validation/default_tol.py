@@ -1,6 +1,6 @@
 """Are the values at the loose tolerances within their estimates of a tight one?
 
-Run ``python validation/default_tol.py`` (about twelve minutes).  For the random
+Run ``python validation/default_tol.py`` (about seven minutes).  For the random
 interval scenes of the family of ``validation/multistart.py`` (which runs seeds
 100 to 139) and ``route_check.py`` (2 or 3 polylines of 7 vertices, 1 to 10
 crossings), seeds 100 to 299, it computes ``J`` at ``tol=1e-3`` (the default:

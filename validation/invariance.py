@@ -1,6 +1,6 @@
 """Invariances of ``J^G`` at the judged tolerance: do the error estimates cover the differences they leave?
 
-Run ``python validation/invariance.py`` (about ten minutes).  Issue 4 judges
+Run ``python validation/invariance.py`` (about three minutes).  Issue 4 judges
 ``direct penalty --tol 1e-5``: the value within 1e-5 of ``J`` and its
 ``error_estimate`` covering the true error.  ``tol_1e5.py`` measures that
 against ``direct``'s own values at ``tol=1e-6``, on the same grids.  This

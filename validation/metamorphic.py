@@ -1,6 +1,6 @@
 """Metamorphic relations on random interval scenes, beyond the test suite.
 
-Run ``python validation/metamorphic.py`` (about three minutes).  For 30
+Run ``python validation/metamorphic.py`` (about a minute).  For 30
 random scenes (2 or 3 polylines of 7 vertices, 1 to 10 crossings) it compares
 ``J`` with ``J`` after a rigid motion, after inserting a vertex and after
 reversing a component, all of which leave ``J`` unchanged, and prints the
