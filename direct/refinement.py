@@ -1921,6 +1921,25 @@ def _doubled(X: np.ndarray, modes: _Modes) -> tuple[np.ndarray, _Modes]:
     return Y[keep], doubled[keep]
 
 
+def _doubling_cap(max_segments: int, tol: float) -> int:
+    """The segments of the last level that may double: ``max_segments``, four times that below ``tol = 1e-6``.
+
+    The level changes of a smooth curve shrink about four times per level
+    (an error ~ n^-2), so a decade of ``tol`` takes about two more levels.
+    At ``max_segments = 512`` a straight crossing at 37 degrees with uneven
+    arms stopped at ``tol=1e-7`` with an estimate of 1.4e-7 (relative) and a
+    warning, its level changes 1.3e-7, 3.2e-8, 8.0e-9 (ratios 4.0), its
+    error 1.5e-12; one more level meets ``tol``.  Never more than four
+    times: a curve that cannot meet ``tol`` (a kink, a crease) doubles to
+    the cap, and the cost doubles with each level.
+    """
+    return max_segments if tol >= _TIGHT_TOL else 4 * max_segments
+
+
+#: below this ``tol`` the levels may double to four times ``max_segments`` (see :func:`refine_many`)
+_TIGHT_TOL = 1e-6
+
+
 def refine_many(
     domain: Domain,
     metric: Metric,
@@ -1948,7 +1967,9 @@ def refine_many(
         relative accuracy of its own.
     start, max_segments : int
         First and largest number of segments: the levels double the segments
-        from ``start`` to ``max_segments``, each curve from the vertices of
+        from ``start`` to ``max_segments`` (four times that below ``tol =
+        1e-6``, where a decade of ``tol`` takes two more levels of a smooth
+        curve: :func:`_doubling_cap`), each curve from the vertices of
         its route (a coarse geodesic of 16 segments, most of the time, so
         its last level has about ``2 max_segments``, plus a vertex where it
         crosses a vertex line).  A curve whose route already has
@@ -2003,7 +2024,7 @@ def refine_many(
         nxt = []
         for c in live:
             c.history.append(c.length)  # the length of the last round's polyline
-            if len(c.history) >= 2 and _finish(c, tol, atol, last=n >= max_segments):
+            if len(c.history) >= 2 and _finish(c, tol, atol, last=n >= _doubling_cap(max_segments, tol)):
                 continue
             if len(c.history) == 1 and c.length == 0.0:
                 c.result = RefinedPath(c.X, 0.0, 0.0, 0.0, len(c.X) - 1)
