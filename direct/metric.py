@@ -668,6 +668,10 @@ class _Pieces:
         self.whole = whole = (~split).nonzero()[0]
         self.many = many = split.nonzero()[0]
         nw, nm = len(whole), len(many)
+        self._where = None
+        self._pairs = self._one_break(found, P, Q)
+        if self._pairs:
+            return
         # the split segments' break points sorted by (segment, t), keys segment + i t; the starts, the
         # breaks of each axis and the ends come as four sorted runs that a stable sort merges fast
         breaks = [_expand_breaks(vp, P[:, axis], Q[:, axis], i0, count) for axis, vp, i0, count in found]
@@ -687,7 +691,37 @@ class _Pieces:
         self.ta = np.concatenate([np.zeros(nw), t[cut]])
         self.tb = np.concatenate([np.ones(nw), t[cut + 1]])
         self.pe = np.concatenate([whole, pe])
-        self._where = None
+
+    def _one_break(self, found, P, Q) -> bool:
+        """The pieces when every split segment crosses one vertex line, strictly inside: ``[0, t]`` and ``[t, 1]``.
+
+        The same arrays as the general construction (the same ``t``, from the
+        same arithmetic as :func:`_expand_breaks`), without its sort: three
+        calls in four of :func:`segment_lengths` during a refinement are of
+        this kind (interval scenes at the default ``tol``).  False, and
+        nothing set, otherwise.
+        """
+        many, nw, nm = self.many, len(self.whole), len(self.many)
+        total = None
+        for _, _, _, count in found:  # a count of -1 (a segment on a line, of no extent along it) passes none
+            total = np.maximum(count, 0) if total is None else total + np.maximum(count, 0)
+        if total.max() != 1:
+            return False
+        t = np.empty(nm)
+        for axis, vp, i0, count in found:
+            e = (count > 0).nonzero()[0]
+            u0, u1 = P[e, axis], Q[e, axis]
+            t[np.searchsorted(many, e)] = (vp[i0[e]] - u0) / (u1 - u0)
+        if not (t.min() > 0.0 and t.max() < 1.0):  # a break at an end: the general construction drops its piece
+            return False
+        ta, tb = np.zeros(nw + 2 * nm), np.ones(nw + 2 * nm)
+        ta[nw + 1::2] = t
+        tb[nw::2] = t
+        self.ta, self.tb = ta, tb
+        self.pe = np.concatenate([self.whole, np.repeat(many, 2)])
+        self.starts = 2 * np.arange(nm)
+        self.next = self.starts + nw
+        return True
 
     def total(self, values: np.ndarray) -> np.ndarray:
         """Sum piece values per segment."""
@@ -696,6 +730,11 @@ class _Pieces:
             np.add.at(out, self.pe, values)
             return out
         nw = len(self.whole)
+        if self._pairs:  # two pieces per split segment (_one_break): the same sums, without reduceat and take
+            out = np.empty((self.m,) + values.shape[1:])
+            out[self.whole] = values[:nw]
+            out[self.many] = values[nw::2] + values[nw + 1::2]
+            return out
         if self._where is None:  # row of each segment in [whole pieces, sums of the others]
             self._where = np.empty(self.m, dtype=np.intp)
             self._where[self.whole] = np.arange(nw)

@@ -136,11 +136,11 @@ def _segment_derivatives(metric: Metric, comps, P: np.ndarray, Q: np.ndarray, st
     The gradient is exact (:func:`direct.metric.segment_lengths`); the Hessian
     is its central difference with step ``step``, symmetrized.
     """
-    m = len(P)
-    U = np.hstack([P, Q])
     if not hessian:
         f, g = segment_lengths(metric, comps, P, Q, gradient=True)
         return f, g, None
+    m = len(P)
+    U = np.hstack([P, Q])
     st = np.broadcast_to(np.asarray(step, dtype=float), (m,))[:, None]  # one step per segment
     E = np.eye(4)
     Us = np.vstack([U] + [U + st * e for e in E] + [U - st * e for e in E])

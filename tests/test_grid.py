@@ -5,6 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from conftest import random_crossing_scene
+from hypothesis import assume, given, settings
+from hypothesis import strategies as st
 from scipy.integrate import quad
 
 import direct
@@ -287,6 +289,45 @@ def test_segment_lengths_in_blocks_are_the_same():
     f, g = segment_lengths(met, comps, P, Q, gradient=True)
     np.testing.assert_allclose(f, whole, rtol=1e-12)
     assert g.shape == (m, 4) and np.isfinite(g).all()
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(1, 40), st.sampled_from([0.05, 0.5, 3.0]))
+def test_pieces_of_segments_crossing_one_line_are_those_of_the_general_construction(seed, m, spread):
+    """``metric._Pieces``: the shortcut for segments that each cross one vertex line (``_one_break``) builds,
+    bit for bit, the arrays and sums of the general construction (a sort of all break points), and leaves
+    any other case to it: ends on lines, segments along a line, corners, several lines."""
+    from direct.metric import _Pieces
+
+    rng = np.random.default_rng(seed)
+    vps = [np.sort(rng.uniform(0, 10, rng.integers(0, 6))) for _ in range(2)]
+    P = rng.uniform(0, 10, (m, 2))
+    Q = P + rng.normal(0, spread, (m, 2))
+    for axis in (0, 1):  # ends on a line, and segments along one
+        if vps[axis].size and rng.random() < 0.5:
+            k = rng.integers(0, m, 2)
+            P[k[0], axis] = rng.choice(vps[axis])
+            P[k[1], axis] = Q[k[1], axis] = rng.choice(vps[axis])
+    lo, hi = np.minimum(P, Q), np.maximum(P, Q)
+    found, split = [], np.zeros(m, dtype=bool)
+    for axis, vp in enumerate(vps):
+        if vp.size:
+            i0 = np.searchsorted(vp, lo[:, axis], side="right")
+            count = np.searchsorted(vp, hi[:, axis], side="left") - i0
+            found.append((axis, vp, i0, count))
+            split |= count > 0
+    assume(split.any())
+    fast = _Pieces(split, found, P, Q)
+    general = _Pieces.__new__(_Pieces)
+    general._one_break = lambda *args: False  # the general construction only
+    _Pieces.__init__(general, split, found, P, Q)
+    for name in ("pe", "ta", "tb", "next", "starts"):
+        a, b = getattr(fast, name), getattr(general, name)
+        assert (a is None) == (b is None)
+        if a is not None:
+            assert a.dtype == b.dtype and np.array_equal(a, b), name
+    values = rng.normal(size=(len(fast.pe), 4))
+    assert np.array_equal(fast.total(values), general.total(values))
 
 
 @pytest.mark.parametrize("scene", ["random", "nested", "fig11"])
