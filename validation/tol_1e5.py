@@ -1,6 +1,6 @@
 """The setting issue 4 is judged at, ``tol=1e-5``, on the random scenes of two other studies.
 
-Run ``python validation/tol_1e5.py`` (about eleven minutes).  Issue 4 judges
+Run ``python validation/tol_1e5.py`` (about three minutes).  Issue 4 judges
 ``direct penalty --tol 1e-5`` on hidden scenes: the value must agree with
 ``J`` to 1e-5 relative and its ``error_estimate`` must cover the true error.
 This runs ``direct.penalty(scene, tol=1e-5)`` (what the command calls) on
