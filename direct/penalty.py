@@ -2337,7 +2337,11 @@ def penalty(
         shorter than the others stops once its estimate is below ``tol / 10``
         of its piece's value shared among the piece's points (taken from the
         refined value when the grid's was more than twice as large: see
-        ``settings["refined_again"]``).
+        ``settings["refined_again"]``).  The levels of the refinement double
+        the segments of each curve up to 512 (2,048 below ``tol = 1e-6``,
+        where a smooth curve needs two more levels per decade): much below
+        1e-7 a curve can stop short of ``tol``, and the result says so
+        (``ToleranceWarning``).
     resolution : int, default 128
         Grid cells along the longer side of each pair domain at the step of
         the patches around crossing points (in deformed arclength for ``G``,
