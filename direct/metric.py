@@ -482,11 +482,13 @@ def _breaks(vertex_params: np.ndarray, u0: np.ndarray, u1: np.ndarray) -> tuple[
 def _expand_breaks(vertex_params, u0, u1, i0, count) -> tuple[np.ndarray, np.ndarray]:
     """:func:`_breaks` from the first vertex index ``i0`` past each segment's start and the ``count`` it passes."""
     count = np.maximum(count, 0)
-    edge = np.repeat(np.arange(len(u0)), count)
-    if edge.size == 0:
-        return edge, np.empty(0)
-    start = np.repeat(np.cumsum(count) - count, count)
-    vals = vertex_params[np.repeat(i0, count) + np.arange(edge.size) - start]
+    if count.max(initial=0) <= 1:  # one break per segment at most (the usual case): no runs to expand
+        edge = count.nonzero()[0]
+        vals = vertex_params[i0[edge]]
+    else:
+        edge = np.repeat(np.arange(len(u0)), count)
+        start = np.repeat(np.cumsum(count) - count, count)
+        vals = vertex_params[np.repeat(i0, count) + np.arange(edge.size) - start]
     return edge, (vals - u0[edge]) / (u1[edge] - u0[edge])
 
 
@@ -695,11 +697,11 @@ class _Pieces:
     def _one_break(self, found, P, Q) -> bool:
         """The pieces when every split segment crosses one vertex line, strictly inside: ``[0, t]`` and ``[t, 1]``.
 
-        The same arrays as the general construction (the same ``t``, from the
-        same arithmetic as :func:`_expand_breaks`), without its sort: three
-        calls in four of :func:`segment_lengths` during a refinement are of
-        this kind (interval scenes at the default ``tol``).  False, and
-        nothing set, otherwise.
+        The same arrays as the general construction (the same ``t``, from
+        :func:`_expand_breaks`), without its sort: three calls in four of
+        :func:`segment_lengths` during a refinement are of this kind
+        (interval scenes at the default ``tol``).  False, and nothing set,
+        otherwise.
         """
         many, nw, nm = self.many, len(self.whole), len(self.many)
         total = None
@@ -709,9 +711,8 @@ class _Pieces:
             return False
         t = np.empty(nm)
         for axis, vp, i0, count in found:
-            e = (count > 0).nonzero()[0]
-            u0, u1 = P[e, axis], Q[e, axis]
-            t[np.searchsorted(many, e)] = (vp[i0[e]] - u0) / (u1 - u0)
+            e, te = _expand_breaks(vp, P[:, axis], Q[:, axis], i0, count)
+            t[np.searchsorted(many, e)] = te
         if not (t.min() > 0.0 and t.max() < 1.0):  # a break at an end: the general construction drops its piece
             return False
         ta, tb = np.zeros(nw + 2 * nm), np.ones(nw + 2 * nm)

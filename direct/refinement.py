@@ -2017,6 +2017,7 @@ def refine_many(
         for c in fine:
             _finish(c, tol, atol)
     live = [c for c in curves if not c.fine]
+    cap = _doubling_cap(max_segments, tol)
     n = start
     while live:
         _grade_and_measure(domain, metric, live, scale)
@@ -2024,7 +2025,7 @@ def refine_many(
         nxt = []
         for c in live:
             c.history.append(c.length)  # the length of the last round's polyline
-            if len(c.history) >= 2 and _finish(c, tol, atol, last=n >= _doubling_cap(max_segments, tol)):
+            if len(c.history) >= 2 and _finish(c, tol, atol, last=n >= cap):
                 continue
             if len(c.history) == 1 and c.length == 0.0:
                 c.result = RefinedPath(c.X, 0.0, 0.0, 0.0, len(c.X) - 1)

@@ -291,6 +291,29 @@ def test_segment_lengths_in_blocks_are_the_same():
     assert g.shape == (m, 4) and np.isfinite(g).all()
 
 
+@settings(max_examples=200, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(0, 30), st.sampled_from([0.05, 0.5, 4.0]))
+def test_breaks_are_every_vertex_parameter_strictly_inside_each_segment(seed, m, spread):
+    """``metric._breaks``: for each segment ``u0 -> u1``, every vertex parameter strictly between them, in
+    order, at ``t = (v - u0) / (u1 - u0)``, as a loop over the segments computes them (both the path for one
+    break per segment at most and the expansion of several)."""
+    from direct.metric import _breaks
+
+    rng = np.random.default_rng(seed)
+    vp = np.sort(rng.uniform(0, 10, rng.integers(0, 8)))
+    u0 = rng.uniform(0, 10, m)
+    u1 = u0 + rng.normal(0, spread, m)
+    edge, t = _breaks(vp, u0, u1)
+    want_edge, want_t = [], []
+    for k in range(m):
+        lo, hi = min(u0[k], u1[k]), max(u0[k], u1[k])
+        for v in vp[(vp > lo) & (vp < hi)]:
+            want_edge.append(k)
+            want_t.append((v - u0[k]) / (u1[k] - u0[k]))
+    assert edge.tolist() == want_edge
+    assert np.array_equal(t, np.array(want_t, dtype=float))
+
+
 @settings(max_examples=300, deadline=None)
 @given(st.integers(0, 2**32 - 1), st.integers(1, 40), st.sampled_from([0.05, 0.5, 3.0]))
 def test_pieces_of_segments_crossing_one_line_are_those_of_the_general_construction(seed, m, spread):
