@@ -161,7 +161,7 @@ def grid_distances(
         way) that does not touch ``route(a, b)``, is at least ``share`` of
         ``T[a, b]`` long, and costs at most ``(1 + margin)`` times
         ``T[a, b]``; the ``most`` cheapest (the other side of a hill of the
-        metric, see :func:`direct.penalty._alternative_starts`).
+        metric, see :func:`direct.starts._alternative_starts`).
     """
     src, dst = graph.sources, graph.targets
     if searches is not None and backend == "scipy":

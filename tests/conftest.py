@@ -26,8 +26,9 @@ def pytest_collection_modifyitems(config, items):
 
 @pytest.fixture
 def refine_batches(monkeypatch) -> list[int]:
-    """The number of curves in each batch ``direct.penalty`` sends to ``refine_many``, in order (a spy: the
-    refinement itself runs unchanged). Read ``len`` before a call to take that call's batches alone."""
+    """The number of curves in each batch ``direct.penalty`` (and ``direct.starts``) sends to ``refine_many``, in
+    order (a spy: the refinement itself runs unchanged). Read ``len`` before a call to take that call's batches
+    alone."""
     P = sys.modules["direct.penalty"]
     batches: list[int] = []
     inner = P.refine_many
@@ -37,6 +38,7 @@ def refine_batches(monkeypatch) -> list[int]:
         return inner(domain, metric, jobs, *args, **kwargs)
 
     monkeypatch.setattr(P, "refine_many", counting)
+    monkeypatch.setattr(sys.modules["direct.starts"], "refine_many", counting)  # the other starts' batches
     return batches
 
 

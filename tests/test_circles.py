@@ -516,7 +516,6 @@ def test_closed_curves_searched_through_more_lines(scene):
     from direct.geodesics import closed_curve_distances
     from direct.refinement import GeodesicJob, coarse_geodesics
 
-    P = sys.modules["direct.penalty"]
     graph = _torus_graph(scene)
     S, V = graph.domain.local_lengths
     seam = closed_curve_distances(graph, most=16, margin=0.04)
@@ -528,7 +527,7 @@ def test_closed_curves_searched_through_more_lines(scene):
             shift = graph.domain.to_local(poly[-1:], wrap=False)[0] - graph.domain.to_local(poly[:1], wrap=False)[0]
             np.testing.assert_allclose(shift, [c[0] * S, c[1] * V], atol=1e-9 * max(S, V))
     assert max(len(curves) for curves in wide.values()) > 2  # not vacuous: more than two curves to rank
-    ranked = P._ranked_loops(graph.domain, get_metric("G"), wide, 2)
+    ranked = direct.starts._ranked_loops(graph.domain, get_metric("G"), wide, 2)
     seen = set()
     for c in wide:  # each class ranked by its own coarse geodesics, its opposite in the same order
         if c in seen:
@@ -890,24 +889,22 @@ def test_corner_vertices_and_the_starts_that_leave_them():
     ``_corner_starts`` bumps the curve around them across itself, to the left and to the right (the corner vertex
     by 0.3 of its longer segment, the vertices within 1.5 such segments along the curve less, in a tent), and
     leaves the vertices farther along and the ends as they were."""
-    import sys
 
     from direct.crossings import find_crossings
     from direct.refinement import GeodesicJob, RefinedPath
 
-    P = sys.modules["direct.penalty"]
     sc = direct.Scene.from_dict({"components": ENTERED_13})
     (dom,) = [d for d in domains(sc, find_crossings(sc)) if d.kind == "cylinder"]
     va, vb = dom.comps[0].params[3], dom.comps[1].params[2]  # a corner of the cells
     X = np.array([[va - 0.3, vb - 0.2], [va - 0.1, vb - 0.1], [va, vb + 1e-7], [va + 0.1, vb + 0.05],
                   [va + 0.2, vb + 0.3], [va + 0.25, 0.5 * (dom.comps[1].params[2] + dom.comps[1].params[3])]])
-    assert P._corner_vertices(dom, X, closed=False).tolist() == [2]
-    assert P._corner_vertices(dom, X + [0.0, 0.05], closed=False).tolist() == []  # on the line va only
+    assert direct.starts._corner_vertices(dom, X, closed=False).tolist() == [2]
+    assert direct.starts._corner_vertices(dom, X + [0.0, 0.05], closed=False).tolist() == []  # on the line va only
     riding = X.copy()
     riding[1:4, 0] = va  # along the line va through the corner (a crease): held there too
-    assert P._corner_vertices(dom, riding, closed=False).tolist() == [2]
+    assert direct.starts._corner_vertices(dom, riding, closed=False).tolist() == [2]
     path = RefinedPath(X, 1.0, 1.0, 0.0, len(X) - 1)
-    left, right = P._corner_starts(dom, path, GeodesicJob(X, end_ground=1))
+    left, right = direct.starts._corner_starts(dom, path, GeodesicJob(X, end_ground=1))
     arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(X, axis=0), axis=1))])
     longer = max(np.linalg.norm(X[2] - X[1]), np.linalg.norm(X[3] - X[2]))
     near = np.abs(arc - arc[2]) < 1.5 * longer  # the tent's reach
@@ -924,7 +921,7 @@ def test_corner_vertices_and_the_starts_that_leave_them():
         assert abs(np.linalg.norm(move) - 0.3 * longer) < 1e-12
         assert 0 < np.linalg.norm(moves[1]) < np.linalg.norm(move)
         assert np.all(np.linalg.norm(moves, axis=1) <= np.linalg.norm(move) + 1e-12)  # a tent: the corner moves most
-    assert P._corner_starts(dom, RefinedPath(X + [0.0, 0.05], 1.0, 1.0, 0.0, 5), GeodesicJob(X)) == []
+    assert direct.starts._corner_starts(dom, RefinedPath(X + [0.0, 0.05], 1.0, 1.0, 0.0, 5), GeodesicJob(X)) == []
 
 
 #: two overlapping random polygons, an 11-gon and a 7-gon (a torus with crossings; an adversarial review)
@@ -973,17 +970,15 @@ def test_a_start_beside_a_corner_keeps_the_estimate_of_the_curve_it_replaces(mon
     estimates: a start that settles a little lower in the same geodesic must not drop what the held estimate
     covers (the spread of a family of closed curves: ``nested`` listed from another vertex came out 7.2e-5 above
     ``J`` with an estimate of 8.0e-6); a longer start changes nothing."""
-    import sys
 
     from direct.refinement import GeodesicJob, RefinedPath
 
-    P = sys.modules["direct.penalty"]
     X = np.array([[0.0, 0.0], [1.0, 1.0]])
     held = {"k": RefinedPath(X, 2.0, 2.0, 1e-4, 1)}
     for lengths, want in (((1.9999, 2.5), (1.9999, 1e-4)), ((2.1, 2.5), None)):
-        monkeypatch.setattr(P, "refine_many", lambda domain, metric, jobs, tol, atol, lengths=lengths: [
+        monkeypatch.setattr(direct.starts, "refine_many", lambda domain, metric, jobs, tol, atol, lengths=lengths: [
             RefinedPath(X, L, L, 1e-7, 1) for L in lengths])
-        out = P._restarted(None, None, {"k": [GeodesicJob(X), GeodesicJob(X)]}, held, 1e-3, 0.0)
+        out = direct.starts._restarted(None, None, {"k": [GeodesicJob(X), GeodesicJob(X)]}, held, 1e-3, 0.0)
         assert (None if not out else (out["k"].length, out["k"].error_estimate)) == want
 
 
@@ -1104,15 +1099,13 @@ def test_bent_and_straight_starts():
     along other directions, those with both ends free and closed ones;
     ``_straight_starts`` runs straight from the crossing point of a short curve to its ground along the parameter
     axes and (1, -1), oriented as the curve, and leaves long curves alone."""
-    import sys
 
     from direct.crossings import find_crossings
     from direct.refinement import GeodesicJob, RefinedPath
 
-    P = sys.modules["direct.penalty"]
     X = np.column_stack([np.linspace(1.0, 2.0, 9), np.linspace(3.0, 2.0, 9)])  # along (1, -1)
     path = RefinedPath(X, 1.0, 1.0, 0.0, 8)
-    starts = P._bent_starts(path, GeodesicJob(X, end_ground=0))
+    starts = direct.starts._bent_starts(path, GeodesicJob(X, end_ground=0))
     chord = X[-1] - X[0]
     normal = np.array([-chord[1], chord[0]]) / np.linalg.norm(chord)
     assert len(starts) == 4
@@ -1123,15 +1116,15 @@ def test_bent_and_straight_starts():
         off = (start.route - X[0]) @ normal
         assert np.all(side * off >= -1e-12) and np.all(side * off <= bend * np.linalg.norm(chord) + 1e-12)
         assert start.end_ground == 0 and start.start_ground is None
-    assert P._bent_starts(path, GeodesicJob(X, start_ground=0, end_ground=1)) == []  # both ends free
+    assert direct.starts._bent_starts(path, GeodesicJob(X, start_ground=0, end_ground=1)) == []  # both ends free
     Z = np.column_stack([X[:, 0], np.linspace(3.0, 2.5, 9)])  # straight, not along (1, -1)
-    assert P._bent_starts(RefinedPath(Z, 1.0, 1.0, 0.0, 8), GeodesicJob(Z, end_ground=0)) == []
+    assert direct.starts._bent_starts(RefinedPath(Z, 1.0, 1.0, 0.0, 8), GeodesicJob(Z, end_ground=0)) == []
     Y = X.copy()
     Y[4, 1] += 1e-4  # 7e-5 of the chord off it
-    assert P._bent_starts(RefinedPath(Y, 1.0, 1.0, 0.0, 8), GeodesicJob(Y, end_ground=0)) == []
+    assert direct.starts._bent_starts(RefinedPath(Y, 1.0, 1.0, 0.0, 8), GeodesicJob(Y, end_ground=0)) == []
     Y[4, 1] = X[4, 1] + 1e-7  # within 1e-5 of the chord: straight still
-    assert len(P._bent_starts(RefinedPath(Y, 1.0, 1.0, 0.0, 8), GeodesicJob(Y, end_ground=0))) == 4
-    assert P._bent_starts(path, GeodesicJob(X, closed=True)) == []
+    assert len(direct.starts._bent_starts(RefinedPath(Y, 1.0, 1.0, 0.0, 8), GeodesicJob(Y, end_ground=0))) == 4
+    assert direct.starts._bent_starts(path, GeodesicJob(X, closed=True)) == []
 
     (dom,) = domains(*(lambda sc: (sc, find_crossings(sc)))(_limacon(17, 0.928)))
     assert dom.kind == "annulus"
@@ -1142,8 +1135,8 @@ def test_bent_and_straight_starts():
             q = p + [0.0, 0.01]
             X = np.array([p, q]) if key[0] >= ng else np.array([q, p])
             held = RefinedPath(X, 1.0, 1.0, 0.0, 1)
-            assert P._straight_starts(dom, key, held, ng, cell=1e-4) == []  # a long curve
-            starts = P._straight_starts(dom, key, held, ng, cell=10.0)
+            assert direct.starts._straight_starts(dom, key, held, ng, cell=1e-4) == []  # a long curve
+            starts = direct.starts._straight_starts(dom, key, held, ng, cell=10.0)
             assert 1 <= len(starts) <= 3
             for job in starts:
                 a, b = job.route
@@ -1154,7 +1147,7 @@ def test_bent_and_straight_starts():
                 v = dom.to_local(other[None, :], wrap=False)[0, 1]
                 assert abs(v - (0.0 if g == 0 else dom.local_lengths[1])) < 1e-9  # on the ground
                 assert (job.start_ground, job.end_ground) == ((g, None) if key[0] < ng else (None, g))
-    assert P._straight_starts(dom, (ng, ng + 1), held, ng, cell=10.0) == []  # point to point
+    assert direct.starts._straight_starts(dom, (ng, ng + 1), held, ng, cell=10.0) == []  # point to point
 
 
 
@@ -1224,13 +1217,11 @@ def test_crease_starts():
     """``_crease_starts`` folds a curve's stretch beside a vertex line (within one cell, two cells or more along it)
     onto the side it is not wholly on (each side, for a stretch across it): offsets kept in size, the other
     vertices and the ends as they were; none for a stretch shorter than two cells or farther than one."""
-    import sys
 
     from direct.crossings import find_crossings
     from direct.metric import _vertex_params
     from direct.refinement import RefinedPath
 
-    P = sys.modules["direct.penalty"]
     scene = _trefoil()
     (dom,) = domains(scene, find_crossings(scene))
     cell = 0.01
@@ -1238,19 +1229,19 @@ def test_crease_starts():
     x2 = np.linspace(2.0, 2.06, 13)  # six cells along the line, 0.3 cells to its left
     X = np.column_stack([np.full(13, line - 0.003), x2])
     X[[0, -1], 0] = line - 0.05  # the ends away from it
-    (job,) = P._crease_starts(dom, RefinedPath(X, 1.0, 1.0, 0.0, 12), cell)
+    (job,) = direct.starts._crease_starts(dom, RefinedPath(X, 1.0, 1.0, 0.0, 12), cell)
     np.testing.assert_allclose(job.route[1:-1, 0], line + 0.003)  # folded onto the right
     np.testing.assert_array_equal(job.route[[0, -1]], X[[0, -1]])
     np.testing.assert_array_equal(job.route[:, 1], x2)
     assert job.start_ground is None and job.end_ground is None
     Y = X.copy()
     Y[1:-1:2, 0] = line + 0.003  # across the line and back: a start on each side
-    assert len(P._crease_starts(dom, RefinedPath(Y, 1.0, 1.0, 0.0, 12), cell)) == 2
+    assert len(direct.starts._crease_starts(dom, RefinedPath(Y, 1.0, 1.0, 0.0, 12), cell)) == 2
     short = RefinedPath(X, 1.0, 1.0, 0.0, 12)
-    assert P._crease_starts(dom, short, cell=0.05) == []  # 1.2 cells along it
+    assert direct.starts._crease_starts(dom, short, cell=0.05) == []  # 1.2 cells along it
     far = X.copy()
     far[1:-1, 0] = line - 0.02  # two cells away
-    assert P._crease_starts(dom, RefinedPath(far, 1.0, 1.0, 0.0, 12), cell) == []
+    assert direct.starts._crease_starts(dom, RefinedPath(far, 1.0, 1.0, 0.0, 12), cell) == []
 
 def _rose(reverse: bool = False, n: int = 43, c: float = 2.5, k: int = 4, t0: float = 0.013) -> direct.Scene:
     """The rose ``r = 1 + c cos kt`` at ``n`` vertices ``t = 2 pi j / n + t0`` (reference: the unit ``n``-gon at
@@ -1383,12 +1374,10 @@ def test_reflected_starts():
     ``y1 + y2 = x1 + x2``, resampled to 16 segments: the same point, the end on the same ground, oriented as the
     curve; none for a curve between two points, whose reflection is more than 5 % longer, or which is its own
     reflection."""
-    import sys
 
     from direct.crossings import find_crossings
     from direct.refinement import RefinedPath, polyline_lengths
 
-    P = sys.modules["direct.penalty"]
     met = get_metric("G")
     scene = _epitrochoid(0.486, first=7, reverse=True)
     (dom,) = domains(scene, find_crossings(scene))
@@ -1407,7 +1396,7 @@ def test_reflected_starts():
             length = float(polyline_lengths(dom, met, [X])[0])
             for key, path in (((a, g), X), ((g, a), X[::-1])):
                 held = RefinedPath(path, length, length, 0.0, 2)
-                starts = P._reflected_starts(dom, met, key, held, ng)
+                starts = direct.starts._reflected_starts(dom, met, key, held, ng)
                 if not starts:
                     continue
                 (job,) = starts
@@ -1425,14 +1414,14 @@ def test_reflected_starts():
                 assert (job.start_ground, job.end_ground) == ((g, None) if key[0] == g else (None, g))
                 assert float(polyline_lengths(dom, met, [job.route])[0]) <= 1.05 * length
                 far = RefinedPath(path, length, length / 2, 0.0, 2)  # its reflection more than 5 % longer
-                assert P._reflected_starts(dom, met, key, far, ng) == []
+                assert direct.starts._reflected_starts(dom, met, key, far, ng) == []
         # a curve along the antidiagonal is its own reflection (the mirror image of a symmetric loop's): none
         d = 0.0 if g == 0 else dom.lengths[0]
         S = np.array([[x1, x2], [(x1 + x2 - d) / 2, (x1 + x2 + d) / 2]])
         same = float(polyline_lengths(dom, met, [S])[0])
-        assert P._reflected_starts(dom, met, (a, g), RefinedPath(S, same, same, 0.0, 1), ng) == []
+        assert direct.starts._reflected_starts(dom, met, (a, g), RefinedPath(S, same, same, 0.0, 1), ng) == []
     assert checked >= 4
-    assert P._reflected_starts(dom, met, (ng, ng + 1), held, ng) == []  # point to point
+    assert direct.starts._reflected_starts(dom, met, (ng, ng + 1), held, ng) == []  # point to point
 
 def test_a_limacon_whose_curves_bulge_from_straight_by_half_a_percent():
     """A second review (stop 31): the limaçon ``a = 0.57`` at 15 vertices gave 0.0493788835 at ``tol=1e-5`` in 13 of
@@ -1647,15 +1636,14 @@ def test_best_of_closed_starts_by_length_plus_estimate():
     the least length is kept and only the starts above count."""
     from direct.refinement import RefinedPath
 
-    P = sys.modules["direct.penalty"]
     pts = np.zeros((2, 2))
     good = RefinedPath(pts, 3.0759775, 3.0759952, 5.3e-5, 148)
     near = RefinedPath(pts, 3.0759777, 3.0759987, 6.3e-5, 144)
     rough = RefinedPath(pts, 3.0751729, 3.0760114, 2.5e-3, 130)
     far = RefinedPath(pts, 3.2, 3.2, 1e-5, 148)
-    best = P._best_of_starts([rough, near, good, far], 5e-4, by_bound=True)
+    best = direct.starts._best_of_starts([rough, near, good, far], 5e-4, by_bound=True)
     assert (best.length, best.upper, best.segments) == (good.length, good.upper, good.segments)
     assert best.error_estimate == pytest.approx(good.error_estimate + (good.length - rough.length), rel=1e-12)
-    plain = P._best_of_starts([rough, near, good, far], 5e-4)
+    plain = direct.starts._best_of_starts([rough, near, good, far], 5e-4)
     assert plain.length == rough.length
     assert plain.error_estimate == pytest.approx(rough.error_estimate + (near.length - rough.length), rel=1e-12)

@@ -503,6 +503,7 @@ def test_rough_refinement_first_changes_nothing_but_the_work(monkeypatch, seed):
         return inner(domain, metric, jobs, tol, atol, **kwargs)
 
     monkeypatch.setattr(P, "refine_many", spy)
+    monkeypatch.setattr(sys.modules["direct.starts"], "refine_many", spy)
     runs = {}
     for rough in (True, False):
         if not rough:

@@ -4,7 +4,7 @@ Run ``python validation/folded_starts.py`` (about two minutes alone).  The scene
 ``limacon_ellipse_line.json`` beside this file, is one an adversarial review built at stop 35: a limaçon
 ``r = 0.35 + cos t`` at 30 vertices, an ellipse (semi-axes 0.9 and 0.4) at 16 and a straight line at 8,
 13 crossings, ``G``.  At ``tol=1e-5`` one winding curve of the limaçon and the ellipse (a torus of
-``M x M``, 1,861 vertices refined) got 22 folded starts (``direct.penalty._crease_starts``), each
+``M x M``, 1,861 vertices refined) got 22 folded starts (``direct.starts._crease_starts``), each
 refined from that resolution through every level: one of them reached 119,874 vertices.  The call took
 1,155 s on 46eea1d (beside other jobs).  Since then a route as fine as a last level stops at its third
 level (``direct.refinement.refine_many``).  Prints each call's value,

@@ -21,6 +21,7 @@ import direct
 from direct.refinement import GeodesicJob, refine_many
 
 P = sys.modules["direct.penalty"]
+S = sys.modules["direct.starts"]  # the other starts: _more_starts refines and picks there
 
 
 def main(tol: float = 1e-5) -> list[tuple[float, list[float]]]:
@@ -46,12 +47,14 @@ def main(tol: float = 1e-5) -> list[tuple[float, list[float]]]:
         return choose(starts)
 
     P.refine_many, P._best_of_starts = spy, restart
+    S.refine_many, S._best_of_starts = spy, restart
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", direct.ToleranceWarning)
             res = direct.penalty("nested", tol=tol)
     finally:
         P.refine_many, P._best_of_starts = refine, choose
+        S.refine_many, S._best_of_starts = refine, choose
     low = sum(min([b] + a) for b, a in found)
     print(f"J(nested) at tol={tol:g}: {res.value:.10f}, estimate {res.error_estimate:.2e} "
           f"({res.error_estimate / res.value:.1e} relative); the shortest curves found, summed: {low:.10f} "
