@@ -27,7 +27,7 @@ from .errors import (
     SceneFileError,
     ToleranceWarning,
 )
-from .penalty import Penalty, penalty
+from .penalty import Pair, Penalty, penalty
 from .scene import Component, Scene, load_scene
 
 __all__ = [
@@ -37,6 +37,7 @@ __all__ = [
     "scenes",
     "penalty",
     "Penalty",
+    "Pair",
     "find_crossings",
     "Crossing",
     "DirectError",

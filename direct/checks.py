@@ -79,7 +79,8 @@ def check_component(reference: Any, deformed: Any, closed: bool, name: str) -> t
     """Validate one component; return its reference and deformed vertices as float arrays.
 
     A closed component whose first vertex is repeated at the end (in both
-    arrays) has the repeated vertex dropped.
+    arrays, or in the one array that has a vertex more) has the repeated
+    vertex dropped.
     """
     if name is None:
         name = ""
@@ -90,6 +91,10 @@ def check_component(reference: Any, deformed: Any, closed: bool, name: str) -> t
         raise SceneError(f"{label}: 'closed' must be true or false, got {closed!r}")
     ref = _as_vertices(reference, "reference", label)
     dfm = _as_vertices(deformed, "deformed", label)
+    if closed and len(ref) == len(dfm) + 1 and len(ref) >= 2 and np.array_equal(ref[0], ref[-1]):
+        ref = ref[:-1]  # the closing vertex repeated in the reference only
+    elif closed and len(dfm) == len(ref) + 1 and len(dfm) >= 2 and np.array_equal(dfm[0], dfm[-1]):
+        dfm = dfm[:-1]
     if len(ref) != len(dfm):
         raise SceneError(
             f"{label}: {len(ref)} reference vertices but {len(dfm)} deformed vertices; "
@@ -176,11 +181,18 @@ def check_scene(scene) -> None:
         pt = shapely.get_coordinates(where)[0].tolist()
         ea = (ia + 1) % ca.n_vertices if ca.closed else ia + 1
         eb = (ib + 1) % cb.n_vertices if cb.closed else ib + 1
+        if ca is not cb:
+            fix = "move the components apart"
+        elif ca.closed:
+            fix = ("make its reference a simple polygon; a closing vertex repeated only up to rounding is not "
+                   "dropped: repeat the first vertex exactly, or leave it out")
+        else:
+            fix = "make its reference a simple polyline"
         raise SceneError(
             "the reference is not an embedding: "
             f"segment {ia} (vertices {ia}-{ea}) of component {ca.name!r} meets "
             f"segment {ib} (vertices {ib}-{eb}) of component {cb.name!r} "
-            f"near {pt}; the reference configuration j must not touch itself (move the components apart)"
+            f"near {pt}; the reference configuration j must not touch itself ({fix})"
         )
 
 
@@ -191,10 +203,20 @@ def free_name(name: str, taken: set) -> str:
     return name
 
 
+#: the options of direct.penalty, refused as top-level keys of a scene file (they would be ignored)
+_OPTIONS = {"metric", "power", "tol", "resolution", "neighbours", "backend", "refine", "second_pass", "coarsen"}
+
+
 def parse_scene_dict(data: Any) -> list[dict[str, Any]]:
     """Check the JSON structure of a scene; return the keyword arguments of each component."""
     if not isinstance(data, dict) or "components" not in data:
         raise SceneFileError('a scene is a JSON object with a "components" list: {"components": [...]}')
+    options = sorted(set(data) & _OPTIONS)
+    if options:  # not read from the file: say so rather than compute with the defaults
+        raise SceneFileError(
+            f"a scene file holds the scene only, not the options {options}: pass them to direct.penalty "
+            f"(metric=..., tol=...) or on the command line (--metric, --tol, ...); other top-level keys are ignored"
+        )
     items = data["components"]
     if not isinstance(items, list):
         raise SceneFileError(f'"components" must be a list, got {type(items).__name__}')

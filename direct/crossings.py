@@ -702,8 +702,9 @@ def find_crossings(scene) -> list[Crossing]:
 
     Parameters
     ----------
-    scene : Scene
+    scene : Scene or str
         The scene; only the deformed vertices and the reference parameters are used.
+        A JSON file path or a built-in scene name is accepted too (:func:`direct.scenes.resolve`).
 
     Returns
     -------
@@ -724,6 +725,9 @@ def find_crossings(scene) -> list[Crossing]:
     >>> [(c.params, c.sign) for c in find_crossings(direct.scenes.get("cross"))]
     [((0.5, 0.5), 1)]
     """
+    from .scenes import resolve
+
+    scene = resolve(scene)
     S = _build_segments(scene)
     comps = scene.components
     results: list[Crossing] = []

@@ -172,6 +172,9 @@ class GFamily(Metric):
     reparametrization_invariant = True  # h(|phi(x1) - phi(x2)|^2) |(phi'(x1) dx1, phi'(x2) dx2)|
     swap_symmetric = True
 
+    def __post_init__(self):
+        _checked_h(self.h, self.label)
+
     def weight(self, r2):  # noqa: D102
         return np.sqrt(self.h(r2))
 
@@ -397,6 +400,25 @@ def get_metric(metric: "str | Metric" = "G", power: float | None = None) -> Metr
 #: the largest power accepted: lengths scale as ``|r|`` to twice it (for g), and the quadrature of an integer
 #: power takes about that many nodes per piece
 _MAX_POWER = 64.0
+
+
+#: where a GFamily's h is probed (squared distances |r|^2)
+_H_PROBE = np.array([0.0, 1e-8, 0.01, 0.25, 1.0, 4.0, 100.0])
+
+
+def _checked_h(h, label: str) -> None:
+    """A DirectError unless ``h`` maps an array of ``s >= 0`` to finite values, ``h(0) = 0`` and ``h > 0`` beyond."""
+    if not callable(h):
+        raise DirectError(f"GFamily {label!r}: h must be a function of s = |y1 - y2|^2, got {h!r}")
+    try:
+        with np.errstate(all="ignore"):
+            v = np.asarray(h(_H_PROBE.copy()), dtype=float)
+    except Exception as err:  # noqa: BLE001  (whatever a user's function raises, said in one message)
+        raise DirectError(f"GFamily {label!r}: h must take a numpy array of s >= 0 (vectorized, e.g. with np.exp "
+                          f"rather than math.exp); h(array) raised {type(err).__name__}: {err}") from err
+    if v.shape != _H_PROBE.shape or not np.all(np.isfinite(v)) or v[0] != 0.0 or not np.all(v[1:] > 0.0):
+        raise DirectError(f"GFamily {label!r}: h must be finite, h(0) = 0 and h(s) > 0 for s > 0 (section 3.4.1), "
+                          f"one value per s; h({_H_PROBE.tolist()}) = {np.asarray(v).tolist()}")
 
 
 def _checked_power(power) -> float:

@@ -252,6 +252,9 @@ class Penalty:
     ----------
     value : float
         ``J(phi)`` over the whole of ``M x M`` (eq. (34); both points of each crossing).
+        Units: length^(q + 1) for ``G = |y1 - y2|^(2 q) Id`` (length^3 by
+        default: ``|r|^2`` times a deformed arclength), length^(2 p) times a
+        reference length for ``g(s) = s^p``, length for ``euclid``.
     error_estimate : float
         Estimated absolute error of ``value``: the sum of the estimates of
         the refined geodesics (:func:`direct.refinement.refine_many`), plus
@@ -264,7 +267,9 @@ class Penalty:
         when no curve is needed (``J = 0``: no crossing, and no condition
         of a circle asks for a curve).  NaN with ``refine=False``: the grid value
         has no estimate (its stencil and sampling bias reach 9 % on the cases
-        of ``validation/failures.md``).
+        of ``validation/failures.md``, and many times ``J`` where the grid
+        cannot follow a valley narrower than a cell: 6.2 times on the
+        built-in ``hairpin``).
     grid_value : float
         The same program solved with the grid (Dijkstra) distances alone.
     upper_bound : float
@@ -305,7 +310,10 @@ class Penalty:
 
     @property
     def paths(self) -> list[np.ndarray]:
-        """The optimal curves ``gamma`` in parameter space, one per pair."""
+        """The optimal curves ``gamma`` in parameter space, one per pair: ``[pair.path for pair in pairs]``.
+
+        Each a ``(k, 2)`` array of parameters ``(x1, x2)`` (reference arclength of the pair's two components).
+        """
         return [p.path for p in self.pairs]
 
     def to_dict(self, scene: Scene | None = None) -> dict[str, Any]:
@@ -1230,7 +1238,7 @@ def _solve_domain(domain: Domain, metric: Metric, settings: dict, backend: Backe
                                        foresee=foresee, rough=rough)
         # the absolute tolerance (a curve much shorter than the others needs no relative accuracy of its own) came
         # from the grid's value, which overestimates J many times over where the grid cannot follow a narrow valley
-        # (a hairpin of the deformed curve: 33 times at 128 cells on the built-in scene hairpin; validation/
+        # (a hairpin of the deformed curve: 61 times at 96 cells, 6.2 at 128, on the built-in scene hairpin; validation/
         # random_closed.py); the chosen curves that stopped on it, short of their relative tolerance, are refined
         # again with the refined value's, when the grid's was more than twice as large (below that the sum of the
         # absolute tolerances stays within a fifth of tol * J)
@@ -1287,7 +1295,8 @@ def penalty(
     ----------
     scene : Scene or str
         The body M with its reference embedding and deformation; a JSON file
-        path or a built-in scene name is accepted too.
+        path or a built-in scene name is accepted too (an existing file
+        first: :func:`direct.scenes.resolve`).
     metric : {"G", "g", "euclid"} or Metric, default "G"
         ``"G"``: ``G(y1, y2) = |y1 - y2|^4 Id`` (Example 14); ``"g"``: the
         non-degenerate family ``g(s) = s^p`` of section 3.4.2; ``"euclid"``:
@@ -1388,10 +1397,11 @@ def penalty(
     DegenerateError
         For contacts the generic-perturbation rule cannot decide.
     DirectError
-        For an invalid argument (``tol`` outside ``(0, 1)``, an unknown
-        ``metric`` or ``backend``, a ``power`` the metric refuses,
+        For an invalid argument (``tol`` not a number in ``(0, 1)``, an
+        unknown ``metric`` or ``backend``, a ``power`` the metric refuses,
         ``resolution`` below 4 or not whole, ``neighbours`` not 8, 16 or 32,
-        ``coarsen`` not 1 or at least 4).  Every error raised on purpose is
+        ``coarsen`` not 1 or at least 4, ``refine`` not a bool,
+        ``second_pass`` not a bool or None).  Every error raised on purpose is
         a :class:`DirectError`; the two above are subclasses.
 
     Examples
@@ -1526,15 +1536,21 @@ def _penalty(scene, metric, power, tol, resolution, neighbours, backend, refine,
     t0 = time.perf_counter()
     scene = resolve(scene)
     met = get_metric(metric, power)
-    if not (0 < tol < 1):
-        raise DirectError(f"tol must be in (0, 1), got {tol!r}")
+    if not is_real_number(tol) or not (0 < tol < 1):
+        raise DirectError(f"tol must be a real number in (0, 1), got {tol!r}")
+    if not isinstance(refine, (bool, np.bool_)):
+        raise DirectError(f"refine must be True or False, got {refine!r}")
+    if second_pass is not None and not isinstance(second_pass, (bool, np.bool_)):
+        raise DirectError(f"second_pass must be True, False or None (chosen by tol), got {second_pass!r}")
+    refine = bool(refine)
+    second_pass = None if second_pass is None else bool(second_pass)
     if not is_real_number(resolution) or not float(resolution).is_integer() or int(resolution) < 4:
         raise DirectError(f"resolution must be a whole number of grid cells, at least 4, got {resolution!r}")
     if backend not in ("scipy", "networkx"):
         raise DirectError(f"backend must be 'scipy' or 'networkx', got {backend!r}")
     if neighbours not in (8, 16, 32):
         raise DirectError(f"neighbours must be 8, 16 or 32, got {neighbours!r}")
-    if int(coarsen) != coarsen or not (coarsen == 1 or coarsen >= 4):
+    if not is_real_number(coarsen) or int(coarsen) != coarsen or not (coarsen == 1 or coarsen >= 4):
         raise DirectError(f"coarsen must be 1 (a uniform grid) or an integer of at least 4, got {coarsen!r}")
     settings: dict[str, Any] = dict(met.describe())
     allow_second = second_pass is not False  # grazing domains get a second pass unless it is refused
@@ -1620,11 +1636,14 @@ def _penalty(scene, metric, power, tol, resolution, neighbours, backend, refine,
             DegenerateMetricWarning,
             stacklevel=3,
         )
-    elif refine and crossings and total < np.finfo(float).tiny:
+    elif refine and any(c.exact for c in crossings) and total < np.finfo(float).tiny:
+        # a contact decided by the perturbation rule (exact=False: an end on the other curve, a touching vertex)
+        # can lie on the boundary of M x M, where J = 0 is right; a transversal crossing gives J > 0
         warnings.warn(
-            f"J = {total:.3g} with {len(crossings)} crossing(s): the lengths of their curves fall below the "
-            "smallest normal floating-point number (J > 0 for a transversal crossing). Rescale the deformed "
-            f"coordinates (J^{met.name} scales as the power {_degree(met):g} of the size), or lower the power.",
+            f"J = {total:.3g} with {sum(c.exact for c in crossings)} transversal crossing(s): the lengths of their "
+            "curves fall below the smallest normal floating-point number (J > 0 for a transversal crossing). "
+            f"Rescale the deformed coordinates (J^{met.name} scales as the power {_degree(met):g} of the size), "
+            "or lower the power.",
             ToleranceWarning,
             stacklevel=3,
         )

@@ -52,7 +52,8 @@ class Component:
         The same material points after the deformation ``phi``.
     closed : bool, default False
         True for a circle of M: the last vertex is joined to the first.  A
-        repeated closing vertex (first == last in both arrays) is dropped.
+        repeated closing vertex (first == last in both arrays, or in the one
+        array that has a vertex more) is dropped.
     name : str, optional
         Used in messages and figures; defaults to ``"C<index>"`` in a scene.
 
@@ -301,6 +302,9 @@ class Scene:
     def __post_init__(self) -> None:
         from .checks import check_scene, free_name
 
+        if isinstance(self.components, (Component, str, bytes)) or not hasattr(self.components, "__iter__"):
+            raise SceneError(f"a Scene takes a sequence of direct.Component, got a {type(self.components).__name__}: "
+                             "write Scene((A,)) or Scene([A, B])")
         comps = []
         taken = {getattr(c, "name", "") for c in self.components}
         for k, c in enumerate(self.components):

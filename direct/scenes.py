@@ -37,7 +37,7 @@ ring      the example at the end of section 3.4.3: a unit circle kept in
 hairpin   a regular octagon folded into a thin loop: two segments of the
           deformation meet at a hairpin of 0.4 degrees and one crossing
           closes the loop; ``J^G`` is tiny (3.3e-5) and the grid's value at
-          128 cells is 33 times it (a valley narrower than a cell).
+          128 cells is 6.2 times it (a valley narrower than a cell).
 ========  =====================================================================
 
 Circles are sampled as polylines with the vertices at equal angles; their
@@ -216,8 +216,11 @@ def resolve(scene: "Scene | str") -> Scene:
     Parameters
     ----------
     scene : Scene or str or path-like
-        A file that exists is read with :func:`direct.load_scene`; otherwise
-        the string must be a built-in name (:func:`names`).
+        A file that exists is read with :func:`direct.load_scene` (a file
+        named like a built-in scene, in the working directory, comes first);
+        otherwise the string must be a built-in name (:func:`names`).  A
+        folder is not a file: a folder named like a built-in scene is passed
+        over.
 
     Returns
     -------
@@ -237,7 +240,7 @@ def resolve(scene: "Scene | str") -> Scene:
     if isinstance(scene, Scene):
         return scene
     if isinstance(scene, (str, os.PathLike)):
-        if os.path.exists(scene):
+        if os.path.isfile(scene) or (os.path.exists(scene) and str(scene) not in _BUILTIN):
             return load_scene(scene)
         if str(scene) in _BUILTIN:
             return get(str(scene))

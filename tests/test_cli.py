@@ -40,6 +40,18 @@ def test_penalty_json_is_one_object(cross_value):
     assert data["seconds"] >= 0
 
 
+def test_penalty_json_lists_the_warnings(capsys):
+    """A script reading ``--json`` can tell a warned result: the warnings printed on standard error, listed."""
+    assert main(["penalty", "cross", "--metric", "euclid", "--json"]) == 0
+    out, err = capsys.readouterr()
+    data = json.loads(out)
+    assert [w["category"] for w in data["warnings"]] == ["DegenerateMetricWarning"]
+    assert data["warnings"][0]["message"].startswith("J^euclid = ")
+    assert err.count("direct: warning (DegenerateMetricWarning): J^euclid = ") == 1
+    assert main(["penalty", "cross", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["warnings"] == []
+
+
 def test_penalty_json_options_reach_penalty(capsys):
     args = "penalty cross --json --metric g --power 1 --no-refine --resolution 24 --neighbours 8 --coarsen 1"
     assert main(args.split()) == 0

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 from conftest import random_crossing_scene
@@ -75,6 +77,14 @@ def test_G_family_with_callable_h_agrees_with_G():
     np.testing.assert_allclose(
         segment_lengths(fam, sc.components, P, Q), segment_lengths(G(), sc.components, P, Q), rtol=1e-10
     )
+
+
+@pytest.mark.parametrize("h, match", [(lambda s: -s, "h must be finite"), (lambda s: s * 0 + 1, r"h\(0\) = 0"),
+                                      (lambda s: math.exp(s) - 1, "vectorized"), (3.0, "must be a function")])
+def test_G_family_refuses_an_h_outside_section_3_4_1(h, match):
+    """A negative h gave a bare KeyError deep in the grid, a math.exp a TypeError, h(0) = 1 a silent number."""
+    with pytest.raises(direct.DirectError, match=match):
+        GFamily(h=h)
 
 
 @pytest.mark.parametrize("n,expected", [(4, 2), (8, 4), (16, 8), (32, 16)])

@@ -647,6 +647,33 @@ def test_a_value_that_underflows_warns():
     assert res.value == 0.0
 
 
+def test_a_contact_at_an_end_gives_zero_without_a_warning():
+    """B ends on A: the contact, decided by the perturbation rule (``exact=False``), lies on the boundary of
+    ``M x M`` and its curve has length 0, so ``J = 0`` is right and must not warn of underflow (as it did)."""
+    sc = direct.Scene((direct.Component([[0, 0], [1, 0]], [[0, 0], [1, 0]], name="A"),
+                       direct.Component([[0, 1], [1, 1]], [[0.5, 0], [0.5, 0.5]], name="B")))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        res = direct.penalty(sc)
+    assert [c.exact for c in res.crossings] == [False]
+    assert res.value == 0.0 and res.error_estimate == 0.0
+
+
+@pytest.mark.parametrize("option, value", [("refine", "no"), ("refine", 0), ("second_pass", "off"),
+                                           ("second_pass", 0), ("tol", "1e-3"), ("coarsen", "x")])
+def test_options_of_the_wrong_type_are_refused(option, value):
+    """``second_pass="off"`` ran the full second pass (a non-empty string is true) and ``second_pass=0`` kept the
+    route check that only ``False`` turns off: options are refused unless of their type (an adversarial review)."""
+    with pytest.raises(direct.DirectError, match=option):
+        direct.penalty("cross", **{option: value})
+
+
+def test_numpy_booleans_are_booleans():
+    res = direct.penalty("cross", second_pass=np.False_, refine=np.True_)
+    assert res.settings["second_pass"] is False and res.settings["route_check"] is False
+    assert res.settings["refine"] is True
+
+
 def test_speeds_beyond_floating_point_are_refused():
     sc = direct.Scene((direct.Component([[0, 0], [1e-120, 0], [1, 0]], [[0, 0], [1, 1], [2, 0]], name="A"),
                        direct.Component([[0, 5], [1, 5]], [[1, -1], [1, 2]], name="B")))

@@ -41,6 +41,18 @@ def test_closing_vertex_is_dropped():
     assert c.length == pytest.approx(2 + np.sqrt(2))
 
 
+@pytest.mark.parametrize("which", ["reference", "deformed"])
+def test_a_closing_vertex_repeated_in_one_array_only_is_dropped(which):
+    tri, big = [[0, 0], [1, 0], [0, 1]], [[0, 0], [2, 0], [0, 2]]
+    arrays = {"reference": tri, "deformed": big}
+    arrays[which] = arrays[which] + [arrays[which][0]]
+    c = direct.Component(arrays["reference"], arrays["deformed"], closed=True)
+    assert c.n_vertices == 3 and c.length == pytest.approx(2 + np.sqrt(2))
+    np.testing.assert_allclose(c.phi([0.5]), [[1.0, 0.0]])
+    with pytest.raises(direct.SceneError, match="4 reference vertices but 3 deformed"):  # an interval: no closing
+        direct.Component(tri + [[0, 0]], big)
+
+
 def test_reversal_keeps_the_image():
     c = direct.Component([[0, 0], [1, 0], [1, 2]], [[0, 0], [2, 0], [2, 1]])
     r = c.reversed()
@@ -100,11 +112,20 @@ def test_scene_checks():
         ('{"components": [{"reference": [[0,0],[1,0]]}]}', "deformed"),
         ('{"components": [{"reference": [[0,0],[1,0]], "deformed": [[0,0],[1,0]], "colour": 1}]}', "unknown key"),
         ('{"components": [{"name": 5, "reference": [[0,0],[1,0]], "deformed": [[0,0],[1,0]]}]}', "'name' must"),
+        ('{"components": [{"reference": [[0,0],[1,0]], "deformed": [[0,0],[1,0]]}], "metric": "g"}',
+         r"not the options \['metric'\]"),
     ],
 )
 def test_file_checks(tmp_path, text, match):
     with pytest.raises(direct.SceneFileError, match=match):
         direct.load_scene(_write(tmp_path, text, raw=True))
+
+
+def test_a_scene_given_as_one_component_is_refused():
+    c = direct.Component([[0, 0], [1, 0]], [[0, 0], [1, 0]])
+    with pytest.raises(direct.SceneError, match=r"Scene\(\(A,\)\)"):
+        direct.Scene(c)
+    assert direct.Scene([c]).components[0].name == "C0"
 
 
 def test_missing_file(tmp_path):
