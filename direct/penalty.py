@@ -272,6 +272,9 @@ class Penalty:
         built-in ``hairpin``).
     grid_value : float
         The same program solved with the grid (Dijkstra) distances alone.
+        An edge of length 0 weighs the smallest normal float (about
+        2.2e-308: scipy's graphs drop zero weights), so a grid value of a
+        few times 1e-308 means 0.
     upper_bound : float
         The exact length of the returned family of curves (the sum of the
         pairs' ``polyline_length``): a family with the boundary that eq. (9)

@@ -1354,6 +1354,32 @@ class _Stack:
         f = segment_lengths(self.metric, self.domain.comps, P, Q)
         return np.bincount(self.s_curve[s], weights=f, minlength=self.C)
 
+    def trials(self, z, dz, t, curves, k):
+        """The selected curves moved by the steps ``t, t / 2, ..., t / 2^(k - 1)`` along ``dz``: ``(X, f)``.
+
+        ``X`` is ``(k, n_vertices, 2)``, ``f`` the ``(k, C)`` lengths (zeros
+        for the curves not selected), all from one call of
+        :func:`direct.metric.segment_lengths`: a line search's trial steps
+        at once, for small stacks whose cost is the call's, not the
+        segments' (a coarse curve of 16 segments).  The same numbers as
+        :meth:`unpack` and :meth:`lengths` step by step, bit for bit (every
+        operation is per vertex or per segment).
+        """
+        su = curves[self.u_curve]
+        ts = t[None, :] * 0.5 ** np.arange(k)[:, None]  # halving is exact: the line search's own steps
+        Z = np.repeat(z[None, :], k, axis=0)
+        Z[:, su] = z[su] + ts[:, self.u_curve[su]] * dz[su]
+        Z = np.clip(Z, self.lo, self.hi)
+        X = np.repeat(self.X0[None], k, axis=0)
+        X[:, self.u_vertex] += Z[:, :, None] * self.E
+        n = len(self.X0)
+        X = _project(self.domain, X.reshape(k * n, 2)).reshape(k, n, 2)
+        s = np.flatnonzero(curves[self.s_curve])
+        p = self.seg_p[s]
+        f = segment_lengths(self.metric, self.domain.comps, X[:, p].reshape(-1, 2), X[:, p + 1].reshape(-1, 2))
+        rows = (np.arange(k)[:, None] * self.C + self.s_curve[s]).ravel()
+        return X, np.bincount(rows, weights=f, minlength=k * self.C).reshape(k, self.C)
+
     def assemble(self, X, curves):
         """Lengths, gradients, and the tridiagonal Hessian ``(diag, off)`` in the unknowns of the selected curves.
 
@@ -1430,6 +1456,10 @@ def _solve_tridiagonal(stack: _Stack, diag, off, rhs, active_u):
     return dz
 
 
+#: the stacked Newton's line search tries up to 4 steps at once while they make at most this many segments
+_TRIALS_AT_ONCE = 256
+
+
 def _newton_many(stack: _Stack, X_start: np.ndarray, max_iter: int, rtol: float):
     """Damped Newton (Levenberg-Marquardt) with backtracking on every curve of a stack at once.
 
@@ -1479,22 +1509,23 @@ def _newton_many(stack: _Stack, X_start: np.ndarray, max_iter: int, rtol: float)
         searching = stepping.copy()
         accepted = np.zeros(C, dtype=bool)
         X_new, f_new = X.copy(), f.copy()
-        for _ls in range(12):
-            su = searching[u_curve]
-            zt = z.copy()
-            zt[su] = z[su] + t[u_curve[su]] * dz[su]
-            Xt = stack.unpack(stack.clip(zt))
-            ft = stack.lengths(Xt, searching)
-            ok = searching & (ft <= f)
-            if ok.any():
-                sv = ok[v_curve]
-                X_new[sv] = Xt[sv]
-                f_new[ok] = ft[ok]
-                accepted |= ok
-            searching &= ~ok
-            if not searching.any():
-                break
-            t[searching] *= 0.5
+        tried = 0
+        while tried < 12 and searching.any():  # halving steps, the first that does not lengthen the curve taken
+            # a few steps at once when the stack is small (one call of the lengths costs about as much as four)
+            k = min(12 - tried, max(1, _TRIALS_AT_ONCE // max(int(searching[stack.s_curve].sum()), 1)), 4)
+            Xs, fs = stack.trials(z, dz, t, searching, k)
+            for Xt, ft in zip(Xs, fs):
+                tried += 1
+                ok = searching & (ft <= f)
+                if ok.any():
+                    sv = ok[v_curve]
+                    X_new[sv] = Xt[sv]
+                    f_new[ok] = ft[ok]
+                    accepted |= ok
+                searching &= ~ok
+                if not searching.any():
+                    break
+                t[searching] *= 0.5
         failed = stepping & ~accepted
         lam[failed] *= 100
         done |= failed & (lam > 1e8)

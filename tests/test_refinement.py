@@ -42,6 +42,39 @@ def test_stacked_curves_refine_as_if_alone(seed):
         assert rp.upper >= rp.length - rp.error_estimate
 
 
+def test_trial_steps_at_once_are_the_steps_one_at_a_time(monkeypatch):
+    """The stacked line search evaluates a few halving steps in one call of the lengths (``_Stack.trials``): each
+    trial is bit for bit the curve and length of that step taken alone (``unpack`` and ``lengths``), and the
+    refined curves are those of a line search that takes one step at a time."""
+    import direct.refinement as R
+
+    dom, met, jobs = _jobs(random_crossing_scene(11, min_crossings=2, max_crossings=4))
+    inner, checked = R._Stack.trials, []
+
+    def checking(stack, z, dz, t, curves, k):
+        X, f = inner(stack, z, dz, t, curves, k)
+        su = curves[stack.u_curve]
+        for j in range(k):
+            zt = z.copy()
+            zt[su] = z[su] + (t * 0.5**j)[stack.u_curve[su]] * dz[su]
+            Xj = stack.unpack(stack.clip(zt))
+            assert np.array_equal(X[j], Xj)
+            assert np.array_equal(f[j], stack.lengths(Xj, curves))
+        checked.append(k)
+        return X, f
+
+    monkeypatch.setattr(R._Stack, "trials", checking)
+    batched = refine_many(dom, met, jobs, tol=1e-4)
+    assert max(checked) == 4 and min(checked) >= 1  # not vacuous: several steps at once were taken
+    monkeypatch.setattr(R, "_TRIALS_AT_ONCE", 0)  # one step per call
+    del checked[:]
+    single = refine_many(dom, met, jobs, tol=1e-4)
+    assert set(checked) == {1}
+    for a, b in zip(batched, single):
+        assert a.length == b.length and a.error_estimate == b.error_estimate
+        assert np.array_equal(a.points, b.points)
+
+
 def test_refined_lengths_beat_the_grid_and_converge():
     """Refined curves are shorter than their grid routes (the grid overestimates) and tighten with tol."""
     scene = direct.scenes.cross(0.7, 0.4, 0.5, 0.9, angle=1.1)
