@@ -1355,30 +1355,29 @@ class _Stack:
         return np.bincount(self.s_curve[s], weights=f, minlength=self.C)
 
     def trials(self, z, dz, t, curves, k):
-        """The selected curves moved by the steps ``t, t / 2, ..., t / 2^(k - 1)`` along ``dz``: ``(X, f)``.
+        """The selected curves moved by the steps ``t, t / 2, ..., t / 2^(k - 1)`` along ``dz``: ``(v, X, f)``.
 
-        ``X`` is ``(k, n_vertices, 2)``, ``f`` the ``(k, C)`` lengths (zeros
-        for the curves not selected), all from one call of
-        :func:`direct.metric.segment_lengths`: a line search's trial steps
-        at once, for small stacks whose cost is the call's, not the
-        segments' (a coarse curve of 16 segments).  The same numbers as
-        :meth:`unpack` and :meth:`lengths` step by step, bit for bit (every
-        operation is per vertex or per segment).
+        ``v`` lists the selected curves' vertices (indices into the stack),
+        ``X`` is ``(k, len(v), 2)``, their positions after each step, and
+        ``f`` the ``(k, C)`` lengths (zeros for the curves not selected), all
+        from one call of :func:`direct.metric.segment_lengths`: a line
+        search's trial steps at once, for small stacks whose cost is the
+        call's, not the segments' (a coarse curve of 16 segments).  The same
+        numbers as :meth:`unpack` and :meth:`lengths` step by step, bit for
+        bit (every operation is per vertex or per segment).
         """
-        su = curves[self.u_curve]
-        ts = t[None, :] * 0.5 ** np.arange(k)[:, None]  # halving is exact: the line search's own steps
-        Z = np.repeat(z[None, :], k, axis=0)
-        Z[:, su] = z[su] + ts[:, self.u_curve[su]] * dz[su]
-        Z = np.clip(Z, self.lo, self.hi)
-        X = np.repeat(self.X0[None], k, axis=0)
-        X[:, self.u_vertex] += Z[:, :, None] * self.E
-        n = len(self.X0)
-        X = _project(self.domain, X.reshape(k * n, 2)).reshape(k, n, 2)
+        v = np.flatnonzero(curves[self.v_curve])
+        u = np.flatnonzero(curves[self.u_curve])
+        ts = t[self.u_curve[u]] * 0.5 ** np.arange(k)[:, None]  # halving is exact: the line search's own steps
+        Z = np.clip(z[u] + ts * dz[u], self.lo[u], self.hi[u])
+        X = np.repeat(self.X0[v][None], k, axis=0)
+        X[:, np.searchsorted(v, self.u_vertex[u])] += Z[:, :, None] * self.E[u]
+        X = _project(self.domain, X.reshape(-1, 2)).reshape(k, len(v), 2)
         s = np.flatnonzero(curves[self.s_curve])
-        p = self.seg_p[s]
+        p = np.searchsorted(v, self.seg_p[s])  # a segment's first vertex, among v; the next one follows it
         f = segment_lengths(self.metric, self.domain.comps, X[:, p].reshape(-1, 2), X[:, p + 1].reshape(-1, 2))
         rows = (np.arange(k)[:, None] * self.C + self.s_curve[s]).ravel()
-        return X, np.bincount(rows, weights=f, minlength=k * self.C).reshape(k, self.C)
+        return v, X, np.bincount(rows, weights=f, minlength=k * self.C).reshape(k, self.C)
 
     def assemble(self, X, curves):
         """Lengths, gradients, and the tridiagonal Hessian ``(diag, off)`` in the unknowns of the selected curves.
@@ -1513,13 +1512,13 @@ def _newton_many(stack: _Stack, X_start: np.ndarray, max_iter: int, rtol: float)
         while tried < 12 and searching.any():  # halving steps, the first that does not lengthen the curve taken
             # a few steps at once when the stack is small (one call of the lengths costs about as much as four)
             k = min(12 - tried, max(1, _TRIALS_AT_ONCE // max(int(searching[stack.s_curve].sum()), 1)), 4)
-            Xs, fs = stack.trials(z, dz, t, searching, k)
+            v, Xs, fs = stack.trials(z, dz, t, searching, k)
             for Xt, ft in zip(Xs, fs):
                 tried += 1
                 ok = searching & (ft <= f)
                 if ok.any():
-                    sv = ok[v_curve]
-                    X_new[sv] = Xt[sv]
+                    sv = ok[v_curve[v]]
+                    X_new[v[sv]] = Xt[sv]
                     f_new[ok] = ft[ok]
                     accepted |= ok
                 searching &= ~ok
