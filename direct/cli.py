@@ -27,6 +27,7 @@ import argparse
 import json
 import math
 import os
+import re
 import sys
 import warnings
 from typing import Any, NoReturn, Sequence
@@ -359,6 +360,23 @@ def _show_warning(message, category, filename, lineno, file=None, line=None) -> 
     print(f"direct: warning ({category.__name__}): {text}", file=sys.stderr if file is None else file)
 
 
+#: the options whose value is a number, and a negative number in scientific notation (argparse takes "-1e-3" for
+#: an option, so that "--tol -1e-3" failed as "expected one argument" rather than with the range of tol)
+_NUMERIC = ("--tol", "--power", "--resolution", "--coarsen", "--neighbours")
+_NEGATIVE = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$|^-(inf|nan)$", re.IGNORECASE)
+
+
+def _joined_numbers(argv: list[str]) -> list[str]:
+    """``--tol -1e-3`` as ``--tol=-1e-3``: a negative value reaches the option's own check."""
+    out: list[str] = []
+    for a in argv:
+        if out and out[-1] in _NUMERIC and _NEGATIVE.match(a):
+            out[-1] = f"{out[-1]}={a}"
+        else:
+            out.append(a)
+    return out
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the ``direct`` command.
 
@@ -377,7 +395,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     parser = build_parser()
     try:
-        args = parser.parse_args(argv)
+        args = parser.parse_args(_joined_numbers(sys.argv[1:] if argv is None else list(argv)))
     except SystemExit as exc:  # --help, --version and usage errors
         return int(exc.code or 0) if not isinstance(exc.code, str) else 2
     command = {"penalty": _cmd_penalty, "plot": _cmd_plot, "scenes": _cmd_scenes}[args.command]

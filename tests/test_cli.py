@@ -52,6 +52,14 @@ def test_penalty_json_lists_the_warnings(capsys):
     assert json.loads(capsys.readouterr().out)["warnings"] == []
 
 
+@pytest.mark.parametrize("args, message", [(["--tol", "-1e-3"], "tol must be a real number in (0, 1)"),
+                                           (["--power", "-2"], "power must be positive")])
+def test_a_negative_number_reaches_the_options_own_check(capsys, args, message):
+    """argparse reads ``-1e-3`` as an option ("expected one argument"): the value must reach its own check."""
+    assert main(["penalty", "cross", *args]) == 2
+    assert message in capsys.readouterr().err
+
+
 def test_penalty_json_options_reach_penalty(capsys):
     args = "penalty cross --json --metric g --power 1 --no-refine --resolution 24 --neighbours 8 --coarsen 1"
     assert main(args.split()) == 0
