@@ -297,8 +297,7 @@ def _scene_descriptions() -> dict[str, str]:
 
 
 def _cmd_penalty(args: argparse.Namespace) -> int:
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("default")
+    with warnings.catch_warnings(record=True) as caught:  # the filters as they are (python -W ...)
         scene, result = _compute(args)
     for w in caught:  # still one line each on standard error, as any other warning
         _show_warning(w.message, w.category, w.filename, w.lineno)
@@ -363,7 +362,7 @@ def _show_warning(message, category, filename, lineno, file=None, line=None) -> 
 #: the options whose value is a number, and a negative number in scientific notation (argparse takes "-1e-3" for
 #: an option, so that "--tol -1e-3" failed as "expected one argument" rather than with the range of tol)
 _NUMERIC = ("--tol", "--power", "--resolution", "--coarsen", "--neighbours")
-_NEGATIVE = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$|^-(inf|nan)$", re.IGNORECASE)
+_NEGATIVE = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$|^-(inf|infinity|nan)$", re.IGNORECASE)
 
 
 def _joined_numbers(argv: list[str]) -> list[str]:

@@ -1494,6 +1494,19 @@ def second_neighbours(neighbours: int, metric: Metric) -> int:
     return max(neighbours, 16)
 
 
+def _inside(scene: Scene, crossings: list[Crossing]) -> int:
+    """How many crossings lie inside ``M x M``: all but the contacts at an end of an open component.
+
+    Such a contact (an end on the other curve) is decided by the perturbation rule (``exact=False``) and its
+    parameter is the end's; a transversal crossing (``exact=True``), however close to an end, lies inside.
+    """
+    def at_end(comp, x):
+        return not comp.closed and min(x, comp.length - x) <= 1e-12 * comp.length
+
+    return sum(c.exact or not any(at_end(scene.components[i], x) for i, x in zip(c.components, c.params))
+               for c in crossings)
+
+
 def _degree(met) -> float:
     """The power of the deformed scene's size by which ``J`` scales: ``q + 1`` for ``G``, ``2 p`` for ``g``.
 
@@ -1553,7 +1566,8 @@ def _penalty(scene, metric, power, tol, resolution, neighbours, backend, refine,
         raise DirectError(f"backend must be 'scipy' or 'networkx', got {backend!r}")
     if neighbours not in (8, 16, 32):
         raise DirectError(f"neighbours must be 8, 16 or 32, got {neighbours!r}")
-    if not is_real_number(coarsen) or int(coarsen) != coarsen or not (coarsen == 1 or coarsen >= 4):
+    if not is_real_number(coarsen) or not np.isfinite(coarsen) or int(coarsen) != coarsen or not (
+            coarsen == 1 or coarsen >= 4):
         raise DirectError(f"coarsen must be 1 (a uniform grid) or an integer of at least 4, got {coarsen!r}")
     settings: dict[str, Any] = dict(met.describe())
     allow_second = second_pass is not False  # grazing domains get a second pass unless it is refused
@@ -1639,11 +1653,11 @@ def _penalty(scene, metric, power, tol, resolution, neighbours, backend, refine,
             DegenerateMetricWarning,
             stacklevel=3,
         )
-    elif refine and any(c.exact for c in crossings) and total < np.finfo(float).tiny:
-        # a contact decided by the perturbation rule (exact=False: an end on the other curve, a touching vertex)
-        # can lie on the boundary of M x M, where J = 0 is right; a transversal crossing gives J > 0
+    elif refine and (inside := _inside(scene, crossings)) and total < np.finfo(float).tiny:
+        # a contact at the end of an open component (an end on the other curve) lies on the boundary of M x M, where
+        # J = 0 is right; a crossing inside M x M (at a vertex too) gives J > 0
         warnings.warn(
-            f"J = {total:.3g} with {sum(c.exact for c in crossings)} transversal crossing(s): the lengths of their "
+            f"J = {total:.3g} with {inside} crossing(s) inside M x M: the lengths of their "
             "curves fall below the smallest normal floating-point number (J > 0 for a transversal crossing). "
             f"Rescale the deformed coordinates (J^{met.name} scales as the power {_degree(met):g} of the size), "
             "or lower the power.",

@@ -1364,7 +1364,11 @@ class _Stack:
         search's trial steps at once, for small stacks whose cost is the
         call's, not the segments' (a coarse curve of 16 segments).  The same
         numbers as :meth:`unpack` and :meth:`lengths` step by step, bit for
-        bit (every operation is per vertex or per segment).
+        bit where the metric's piece integrals have a closed form (``G`` with
+        ``q = 2``, ``g`` with ``p = 1``: every operation is per vertex or per
+        segment); with Gauss-Legendre quadrature, whose weighted sums are a
+        BLAS product over the batch, to the last bit (as the stepwise search
+        already was, its batch of curves changing from step to step).
         """
         v = np.flatnonzero(curves[self.v_curve])
         u = np.flatnonzero(curves[self.u_curve])

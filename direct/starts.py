@@ -1099,7 +1099,7 @@ def _best_of_starts(found: list[RefinedPath], family: float = 0.01, by_bound: bo
     that eight starts reach in a probe, with discretization estimates of 6e-6).
     Farther minima are other geodesics, and add nothing.  Around a circle
     (:func:`_family_shifts`) the window is 1 %; for the closed curves of a
-    torus it is ``_CLOSED_FAMILY``, as distinct closed geodesics lie closer
+    torus it is ``direct.penalty._CLOSED_FAMILY``, as distinct closed geodesics lie closer
     (two random nested 7-gons: six within 1 %, 1.1e-3 apart at least).
 
     With ``by_bound`` (the closed curves of a torus) the best is the least

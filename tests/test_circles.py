@@ -395,7 +395,7 @@ def test_rough_refinement_hides_no_entry_from_the_checks_of_entries_not_chosen(m
 
 def test_hairpin_short_curves_are_refined_to_the_refined_values_tolerance():
     """The built-in ``hairpin`` (an octagon folded into a thin loop, two segments at 0.4 degrees): the metric has
-    a valley much narrower than a grid cell and the grid's value is 33 times J at 128 cells. The absolute
+    a valley much narrower than a grid cell and the grid's value was 33 times J at 128 cells. The absolute
     tolerance taken from it let the curves stop short of their relative tolerance (1.1e-3 off, estimate 1.6e-3, with
     a warning at the default tol). Refined again with the refined value's, a run must reach its tolerance,
     without a warning, within its estimate of a tight run. Since stop 30 (the annulus grid with the 16 moves of

@@ -659,6 +659,16 @@ def test_a_contact_at_an_end_gives_zero_without_a_warning():
     assert res.value == 0.0 and res.error_estimate == 0.0
 
 
+def test_a_crossing_at_a_vertex_whose_value_underflows_warns():
+    """A crossing at a vertex is also decided by the perturbation rule (``exact=False``) but lies inside
+    ``M x M``: ``J > 0``, and a value that underflows to 0 must warn (a review of the rule above)."""
+    sc = direct.Scene((direct.Component([[0, 0], [2, 0]], [[-1, 0], [1, 0]], name="A"),
+                       direct.Component([[0, 5], [1, 5], [2, 5]], [[0, -1], [0, 0], [0, 1e-90]], name="B")))
+    with pytest.warns(direct.ToleranceWarning, match="1 crossing.s. inside M x M"):
+        res = direct.penalty(sc, power=4)
+    assert [c.exact for c in res.crossings] == [False] and res.value == 0.0
+
+
 @pytest.mark.parametrize("option, value", [("refine", "no"), ("refine", 0), ("second_pass", "off"),
                                            ("second_pass", 0), ("tol", "1e-3"), ("coarsen", "x")])
 def test_options_of_the_wrong_type_are_refused(option, value):

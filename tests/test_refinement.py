@@ -45,7 +45,8 @@ def test_stacked_curves_refine_as_if_alone(seed):
 def test_trial_steps_at_once_are_the_steps_one_at_a_time(monkeypatch):
     """The stacked line search evaluates a few halving steps in one call of the lengths (``_Stack.trials``): each
     trial is bit for bit the curve and length of that step taken alone (``unpack`` and ``lengths``), and the
-    refined curves are those of a line search that takes one step at a time."""
+    refined curves are those of a line search that takes one step at a time (``G``, whose piece integrals are in
+    closed form; a metric integrated by quadrature agrees to the last bit: a BLAS product over the batch)."""
     import direct.refinement as R
 
     dom, met, jobs = _jobs(random_crossing_scene(11, min_crossings=2, max_crossings=4))

@@ -35,7 +35,9 @@ def main(tol: float = 1e-5) -> list[tuple[float, list[float]]]:
 
     choose = P._best_of_starts
 
-    def restart(starts):
+    def restart(starts, family=0.01, by_bound=False):
+        if not by_bound:  # not the closed curves of a torus (the mirror pairs, the shifted starts): as it was
+            return choose(starts, family, by_bound)
         best = min(starts, key=lambda rp: rp.length)
         domain, metric, kwargs = context["args"]
         edges = np.array([c.length / c.n_segments for c in domain.comps])
@@ -44,7 +46,7 @@ def main(tol: float = 1e-5) -> list[tuple[float, list[float]]]:
         found.append((best.length, again))
         print(f"chosen closed curve {best.length:.10f} (estimate {best.error_estimate:.1e}); refined again from it "
               f"and shifted by 0.25, 0.5, 0.75, 1 edge: " + ", ".join(f"{v:.10f}" for v in again), flush=True)
-        return choose(starts)
+        return choose(starts, family, by_bound)
 
     P.refine_many, P._best_of_starts = spy, restart
     S.refine_many, S._best_of_starts = spy, restart
