@@ -1639,7 +1639,7 @@ def _penalty(scene, metric, power, tol, resolution, neighbours, backend, refine,
                                   ec, sc, length, perr, path[::-1, ::-1].copy(), closed, plen))
     if total > 0 and met.degenerate:
         if refine:
-            told = (f"J^{met.name} = {total:.7g} with an error estimate of {err_total:.2g} "
+            told = (f"J^{met.name} = {total:.7g} with an error estimate of {rounded_up(err_total)} "
                     f"({err_total / total:.1e} relative, tol={tol:g})")
             covers = ("the estimate covers their refinement and the spread between two grids, not the routes "
                       "neither grid found (validation/euclid.py).")
@@ -1666,8 +1666,8 @@ def _penalty(scene, metric, power, tol, resolution, neighbours, backend, refine,
         )
     elif refine and rounding_total > 0.5 * err_total > 0.5 * tol * max(total, 0.0):
         warnings.warn(
-            f"J = {total:.7g} has an error estimate of {err_total:.2g}, above the requested tol={tol:g}, mostly "
-            "from rounding: r = phi(x1) - phi(x2) is formed from deformed coordinates much larger than the "
+            f"J = {total:.7g} has an error estimate of {rounded_up(err_total)}, above the requested tol={tol:g}, "
+            "mostly from rounding: r = phi(x1) - phi(x2) is formed from deformed coordinates much larger than the "
             "curves reach (a scene far from the origin, or a crossing very close to the end of a component). "
             "Translate the scene to the origin, or read the value with its error_estimate.",
             ToleranceWarning,
@@ -1676,7 +1676,7 @@ def _penalty(scene, metric, power, tol, resolution, neighbours, backend, refine,
     elif refine and err_total > tol * max(total, 0.0):  # J = 0 with a positive estimate: no relative accuracy
         relative = f"{err_total / total:.1e} relative" if total > 0 else "J = 0 with a positive estimate"
         warnings.warn(
-            f"J = {total:.7g} has an error estimate of {err_total:.2g} ({relative}), above the "
+            f"J = {total:.7g} has an error estimate of {rounded_up(err_total)} ({relative}), above the "
             f"requested tol={tol:g}: the refinement found geodesics that settle apart from different starts (a "
             "geodesic along a crease of the metric, or a grazing crossing) or did not converge within its "
             "levels. Read the value with its error_estimate"
