@@ -75,6 +75,11 @@ def _as_vertices(a: Any, what: str, label: str) -> np.ndarray:
     return arr
 
 
+def _without_closing(a: np.ndarray) -> np.ndarray:
+    """The vertices without the last one when it repeats the first."""
+    return a[:-1] if len(a) >= 2 and np.array_equal(a[0], a[-1]) else a
+
+
 def check_component(reference: Any, deformed: Any, closed: bool, name: str) -> tuple[np.ndarray, np.ndarray]:
     """Validate one component; return its reference and deformed vertices as float arrays.
 
@@ -91,17 +96,15 @@ def check_component(reference: Any, deformed: Any, closed: bool, name: str) -> t
         raise SceneError(f"{label}: 'closed' must be true or false, got {closed!r}")
     ref = _as_vertices(reference, "reference", label)
     dfm = _as_vertices(deformed, "deformed", label)
-    if closed and len(ref) == len(dfm) + 1 and len(ref) >= 2 and np.array_equal(ref[0], ref[-1]):
-        ref = ref[:-1]  # the closing vertex repeated in the reference only
-    elif closed and len(dfm) == len(ref) + 1 and len(dfm) >= 2 and np.array_equal(dfm[0], dfm[-1]):
-        dfm = dfm[:-1]
+    if closed:  # a repeated closing vertex goes from each array that has one, if the counts then agree
+        ref_once, dfm_once = _without_closing(ref), _without_closing(dfm)
+        if len(ref_once) == len(dfm_once):
+            ref, dfm = ref_once, dfm_once
     if len(ref) != len(dfm):
         raise SceneError(
             f"{label}: {len(ref)} reference vertices but {len(dfm)} deformed vertices; "
             "give the same material points in both"
         )
-    if closed and len(ref) >= 2 and np.array_equal(ref[0], ref[-1]) and np.array_equal(dfm[0], dfm[-1]):
-        ref, dfm = ref[:-1], dfm[:-1]
     need = 3 if closed else 2
     if len(ref) < need:
         kind = "a closed" if closed else "an open"
