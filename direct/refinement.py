@@ -1348,12 +1348,6 @@ class _Stack:
         p = self.seg_p[s]
         return s, X[p], X[p + 1]
 
-    def lengths(self, X, curves):
-        """Length of each selected curve (zeros elsewhere)."""
-        s, P, Q = self._segments(X, curves)
-        f = segment_lengths(self.metric, self.domain.comps, P, Q)
-        return np.bincount(self.s_curve[s], weights=f, minlength=self.C)
-
     def trials(self, z, dz, t, curves, k):
         """The selected curves moved by the steps ``t, t / 2, ..., t / 2^(k - 1)`` along ``dz``: ``(v, X, f)``.
 
@@ -1363,7 +1357,7 @@ class _Stack:
         from one call of :func:`direct.metric.segment_lengths`: a line
         search's trial steps at once, for small stacks whose cost is the
         call's, not the segments' (a coarse curve of 16 segments).  The same
-        numbers as :meth:`unpack` and :meth:`lengths` step by step, bit for
+        numbers as :meth:`unpack` and :func:`polyline_lengths` step by step, bit for
         bit where the metric's piece integrals have a closed form (``G`` with
         ``q = 2``, ``g`` with ``p = 1``: every operation is per vertex or per
         segment); with Gauss-Legendre quadrature, whose weighted sums are a
