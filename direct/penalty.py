@@ -1653,12 +1653,12 @@ def _penalty(scene, metric, power, tol, resolution, neighbours, backend, refine,
             DegenerateMetricWarning,
             stacklevel=3,
         )
-    elif refine and (inside := _inside(scene, crossings)) and total < np.finfo(float).tiny:
+    elif refine and total < np.finfo(float).tiny and (inside := _inside(scene, crossings)):
         # a contact at the end of an open component (an end on the other curve) lies on the boundary of M x M, where
         # J = 0 is right; a crossing inside M x M (at a vertex too) gives J > 0
         warnings.warn(
             f"J = {total:.3g} with {inside} crossing(s) inside M x M: the lengths of their "
-            "curves fall below the smallest normal floating-point number (J > 0 for a transversal crossing). "
+            "curves fall below the smallest normal floating-point number (J > 0 for a crossing inside M x M). "
             f"Rescale the deformed coordinates (J^{met.name} scales as the power {_degree(met):g} of the size), "
             "or lower the power.",
             ToleranceWarning,
