@@ -111,8 +111,6 @@ def _local_stencil(domain: "Domain", neighbours: int) -> np.ndarray:
 
 def _apply(B: np.ndarray, x: np.ndarray) -> np.ndarray:
     """``x @ B.T`` for a 2 x 2 change of coordinates, without a BLAS call (slow for tiny inner sizes)."""
-    if B[0, 1] == 0.0 and B[1, 0] == 0.0 and B[0, 0] == 1.0 and B[1, 1] == 1.0:
-        return x.copy()
     out = np.empty_like(x)
     out[:, 0] = B[0, 0] * x[:, 0] + B[0, 1] * x[:, 1]
     out[:, 1] = B[1, 0] * x[:, 0] + B[1, 1] * x[:, 1]
@@ -143,7 +141,7 @@ class Domain:
     signs: np.ndarray
     crossing_ids: np.ndarray
 
-    @property
+    @cached_property
     def kind(self) -> str:
         """One of ``rect``, ``triangle``, ``cylinder``, ``annulus``, ``torus``."""
         c1, c2 = (c.closed for c in self.comps)
@@ -178,10 +176,15 @@ class Domain:
         return np.eye(2)
 
     @cached_property
+    def _identity(self) -> bool:
+        """Local coordinates are the parameters themselves (rectangle, triangle, torus, cylinder along ``x1``)."""
+        return bool((self.basis == np.eye(2)).all())
+
+    @cached_property
     def _inverse_basis(self) -> np.ndarray:
         return np.linalg.inv(self.basis)
 
-    @property
+    @cached_property
     def local_lengths(self) -> tuple[float, float]:
         """``(S, V)``: the domain is ``[0, S] x [0, V]`` in local coordinates."""
         L1, L2 = self.lengths
@@ -189,7 +192,7 @@ class Domain:
             return (L2, L1)
         return (L1, L2)
 
-    @property
+    @cached_property
     def periodic(self) -> tuple[bool, bool]:
         """Whether ``s`` and ``v`` are periodic."""
         k = self.kind
@@ -202,7 +205,8 @@ class Domain:
 
     def to_local(self, x: np.ndarray, wrap: bool = True) -> np.ndarray:
         """Local coordinates ``(s, v)`` of parameters ``(x1, x2)``; periodic ones wrapped into ``[0, S)``."""
-        st = _apply(self._inverse_basis, np.asarray(x, dtype=float).reshape(-1, 2))
+        x = np.asarray(x, dtype=float).reshape(-1, 2)
+        st = x.copy() if self._identity else _apply(self._inverse_basis, x)
         if wrap:
             S, V = self.local_lengths
             ps, pv = self.periodic
@@ -214,7 +218,8 @@ class Domain:
 
     def to_param(self, st: np.ndarray) -> np.ndarray:
         """Parameters ``(x1, x2)`` of local coordinates (not wrapped)."""
-        return _apply(self.basis, np.asarray(st, dtype=float).reshape(-1, 2))
+        st = np.asarray(st, dtype=float).reshape(-1, 2)
+        return st.copy() if self._identity else _apply(self.basis, st)
 
     def exit_time(self, p: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """First ``t >= 0`` at which ``p + t d`` (local coordinates) reaches the boundary, and which ground.

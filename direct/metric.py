@@ -503,8 +503,8 @@ def _breaks(vertex_params: np.ndarray, u0: np.ndarray, u1: np.ndarray) -> tuple[
     Returns the edge index and ``t`` of every such crossing, as flat arrays.
     """
     lo, hi = np.minimum(u0, u1), np.maximum(u0, u1)
-    i0 = np.searchsorted(vertex_params, lo, side="right")
-    return _expand_breaks(vertex_params, u0, u1, i0, np.searchsorted(vertex_params, hi, side="left") - i0)
+    i0 = vertex_params.searchsorted(lo, side="right")
+    return _expand_breaks(vertex_params, u0, u1, i0, vertex_params.searchsorted(hi, side="left") - i0)
 
 
 def _expand_breaks(vertex_params, u0, u1, i0, count) -> tuple[np.ndarray, np.ndarray]:
@@ -613,31 +613,39 @@ def _segment_lengths(metric: Metric, comps, P: np.ndarray, Q: np.ndarray, gradie
         vp = cc.vertex_params(comps[axis], lo[:, axis], hi[:, axis])
         if vp.size == 0:
             continue
-        i0 = np.searchsorted(vp, lo[:, axis], side="right")
-        count = np.searchsorted(vp, hi[:, axis], side="left") - i0
+        i0 = vp.searchsorted(lo[:, axis], side="right")
+        count = vp.searchsorted(hi[:, axis], side="left") - i0
         found.append((axis, vp, i0, count))
         split = count > 0 if split is None else split | (count > 0)
     if split is None or not split.any():  # every segment lies in one cell: a single piece [0, 1]
         pieces, Pp, dp, tc, h = None, P, d, 0.5, None
-        mid = P + 0.5 * d
+        # on an open component that cell is the one right of the segment's start, found above (no vertex lies
+        # strictly inside [lo, hi]); a closed one's vertex parameters repeat periodically: located at the midpoint
+        cell = {axis: i0 for axis, _, i0, _ in found if not cells[axis].closed}
+        cell.update({axis: np.zeros(len(P), dtype=np.intp) for axis, cc in enumerate(cells)
+                     if not cc.closed and cc.inner.size == 0})
+        mid = None if len(cell) == 2 else P + 0.5 * d
     else:
-        pieces = _Pieces(split, found, P, Q)
-        Pp, dp = np.take(P, pieces.pe, axis=0), np.take(d, pieces.pe, axis=0)
+        pieces, cell = _Pieces(split, found, P, Q), {}
+        Pp, dp = P.take(pieces.pe, axis=0), d.take(pieces.pe, axis=0)
         tc, h = 0.5 * (pieces.ta + pieces.tb)[:, None], (pieces.tb - pieces.ta)[:, None]
         mid = Pp + tc * dp
-    n = len(mid)
+    n = len(Pp)
     # the cell of each piece, located at its midpoint; X = (phi'(x1), -phi'(x2)), r = phi(x1) - phi(x2)
     X = np.empty((n, 2), dtype=complex)
     K = np.empty((n, 2), dtype=np.intp)
     offs = np.empty((n, 2))
     verts = []
     for axis, cc in enumerate(cells):
-        x = mid[:, axis]
-        if cc.closed and not (x.min() >= 0.0 and x.max() < cc.length):  # else: no shift, the same values
-            k = K[:, axis] = np.searchsorted(cc.inner, np.mod(x, cc.length), side="right")
+        if axis in cell:
+            k = K[:, axis] = cell[axis]
+            cc.params.take(k, out=offs[:, axis])
+        elif cc.closed and not (mid[:, axis].min() >= 0.0 and mid[:, axis].max() < cc.length):  # else: no shift
+            x = mid[:, axis]
+            k = K[:, axis] = cc.inner.searchsorted(np.mod(x, cc.length), side="right")
             offs[:, axis] = cc.params.take(k) + np.floor(x / cc.length) * cc.length  # periodic shift
         else:
-            k = K[:, axis] = np.searchsorted(cc.inner, x, side="right")
+            k = K[:, axis] = cc.inner.searchsorted(mid[:, axis], side="right")
             cc.params.take(k, out=offs[:, axis])
         verts.append(cc.ring.take(k))
         cc.vel.take(k, out=X[:, axis])
@@ -740,7 +748,7 @@ class _Pieces:
         t = np.empty(nm)
         for axis, vp, i0, count in found:
             e, te = _expand_breaks(vp, P[:, axis], Q[:, axis], i0, count)
-            t[np.searchsorted(many, e)] = te
+            t[many.searchsorted(e)] = te
         if not (t.min() > 0.0 and t.max() < 1.0):  # a break at an end: the general construction drops its piece
             return False
         ta, tb = np.zeros(nw + 2 * nm), np.ones(nw + 2 * nm)
@@ -769,7 +777,7 @@ class _Pieces:
             self._where[self.whole] = np.arange(nw)
             self._where[self.many] = np.arange(nw, self.m)
         stacked = np.concatenate([values[:nw], np.add.reduceat(values[nw:], self.starts, axis=0)])
-        return np.take(stacked, self._where, axis=0)
+        return stacked.take(self._where, axis=0)
 
     def add_jumps(self, metric, grad, K, X, dp, N, rc, e) -> None:
         """Jumps of the integrand where a piece ends on a vertex line, times the motion of that crossing."""
@@ -781,7 +789,7 @@ class _Pieces:
         rk *= 0.5
         rk += rc[p]  # r at the end of piece p, on its own cell
         rhok = metric.weight(rk.real * rk.real + rk.imag * rk.imag)
-        dpp = np.take(dp, p, axis=0)
+        dpp = dp.take(p, axis=0)
         # through the corner, when both lines are crossed at once: first x1's line, then x2's
         corner = np.empty((len(p), 2), dtype=complex)
         X[:, 0].take(q, out=corner[:, 0])
@@ -791,7 +799,7 @@ class _Pieces:
         np.subtract(N.take(p), n_mid, out=jump[:, 0])  # rho (N_before - N_after) on the line crossed
         np.subtract(n_mid, N.take(q), out=jump[:, 1])
         jump *= rhok[:, None]
-        jump *= np.take(K, p, axis=0) != np.take(K, q, axis=0)  # only on the lines crossed
+        jump *= K.take(p, axis=0) != K.take(q, axis=0)  # only on the lines crossed
         # the crossing at t_k = (vertex - P) / d moves with the ends: dt_k/dP = (t_k - 1) / d, dt_k/dQ = -t_k / d
         jump = np.divide(jump, dpp, out=np.zeros_like(jump), where=dpp != 0)
         tk = self.tb.take(p)[:, None]

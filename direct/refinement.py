@@ -46,7 +46,8 @@ from functools import cached_property
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.linalg import LinAlgError, solve_banded
+from scipy.linalg import LinAlgError
+from scipy.linalg.lapack import dgtsv
 from scipy.optimize import minimize
 from scipy.sparse.linalg import spsolve
 
@@ -159,8 +160,8 @@ def _project(domain: Domain, X: np.ndarray) -> np.ndarray:
     S, V = domain.local_lengths
     ps, _ = domain.periodic
     if not ps:
-        st[:, 0] = np.clip(st[:, 0], 0.0, S)
-    st[:, 1] = np.clip(st[:, 1], 0.0, V)
+        np.minimum(np.maximum(st[:, 0], 0.0), S, out=st[:, 0])  # np.clip's numbers, without its overhead
+    np.minimum(np.maximum(st[:, 1], 0.0), V, out=st[:, 1])
     X = domain.to_param(st)
     if domain.kind == "triangle":
         low = X[:, 1] < X[:, 0]
@@ -336,7 +337,9 @@ class _Parametrization:
 
     def clip(self, z):
         """Keep sliding vertices within their stretch of line."""
-        z[self._slide_idx] = np.clip(z[self._slide_idx], self._lo, self._hi)
+        k = self._slide_idx
+        if k.size:
+            z[k] = np.minimum(np.maximum(z[k], self._lo), self._hi)  # np.clip's numbers, without its overhead
         return z
 
     def unpack(self, z: np.ndarray) -> np.ndarray:
@@ -1333,7 +1336,7 @@ class _Stack:
         self.Ev[self.u_vertex] = self.E
 
     def clip(self, z):
-        return np.clip(z, self.lo, self.hi)
+        return np.minimum(np.maximum(z, self.lo), self.hi)
 
     def pack(self, X):
         return self.clip(((X - self.X0)[self.u_vertex] * self.E).sum(axis=1) / self.ediag)
@@ -1367,7 +1370,7 @@ class _Stack:
         v = np.flatnonzero(curves[self.v_curve])
         u = np.flatnonzero(curves[self.u_curve])
         ts = t[self.u_curve[u]] * 0.5 ** np.arange(k)[:, None]  # halving is exact: the line search's own steps
-        Z = np.clip(z[u] + ts * dz[u], self.lo[u], self.hi[u])
+        Z = np.minimum(np.maximum(z[u] + ts * dz[u], self.lo[u]), self.hi[u])
         X = np.repeat(self.X0[v][None], k, axis=0)
         X[:, np.searchsorted(v, self.u_vertex[u])] += Z[:, :, None] * self.E[u]
         X = _project(self.domain, X.reshape(-1, 2)).reshape(k, len(v), 2)
@@ -1388,7 +1391,8 @@ class _Stack:
         """
         s, P, Q = self._segments(X, curves)
         m = len(s)
-        seg = np.linalg.norm(Q - P, axis=1)
+        seg = Q - P
+        seg = np.sqrt(np.add.reduce(seg * seg, axis=1))  # np.linalg.norm's numbers, without its overhead
         h = np.minimum(1e-6 * self.scale, np.maximum(1e-3 * seg, 1e-9 * self.scale))[:, None]  # short, short steps
         p = self.seg_p[s]
         Ep, Eq = self.Ev[p], self.Ev[p + 1]
@@ -1415,7 +1419,8 @@ class _Stack:
 
     def step_limits(self, X, dz, curves):
         """Largest step fraction per curve that moves no vertex more than half its shorter segment."""
-        seg = np.linalg.norm(X[self.seg_p + 1] - X[self.seg_p], axis=1)
+        seg = X[self.seg_p + 1] - X[self.seg_p]
+        seg = np.sqrt(np.add.reduce(seg * seg, axis=1))  # np.linalg.norm's numbers, without its overhead
         mean = np.bincount(self.s_curve, weights=seg, minlength=self.C) / np.maximum(self.n_seg, 1)
         room = np.minimum(seg[self.u_prev], seg[self.u_next])
         room = np.maximum(room, 0.25 * mean[self.u_curve])  # a vertex beside a tiny segment may still move
@@ -1426,28 +1431,41 @@ class _Stack:
         return np.where(worst > 0, np.minimum(1.0, 0.5 / np.where(worst > 0, worst, 1.0)), 1.0)
 
 
+def _symmetric_tridiagonal_solve(diag: np.ndarray, off: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """``x`` with ``T x = rhs``, ``T`` symmetric tridiagonal (``diag``, ``off``): LAPACK's ``dgtsv``.
+
+    The routine ``scipy.linalg.solve_banded((1, 1), ...)`` calls, with the same
+    arguments (so the same numbers), without its checks and batching wrapper:
+    the stacked Newton solves tens of thousands of small systems, whose cost
+    is the call's.  Raises ``LinAlgError`` when ``T`` is singular.
+    """
+    if diag.size == 1:  # as solve_banded: one division (dgtsv's wrapper wants off-diagonals of length >= 1)
+        return rhs / diag
+    _, _, _, x, info = dgtsv(off.copy(), diag.copy(), off.copy(), rhs.copy(), True, True, True, True)
+    if info > 0:
+        raise LinAlgError("singular matrix")
+    if info < 0:
+        raise ValueError(f"illegal value in argument {-info} of dgtsv")
+    return x
+
+
 def _solve_tridiagonal(stack: _Stack, diag, off, rhs, active_u):
     """Solve the block tridiagonal system on the active unknowns; NaN for a curve whose block is singular."""
     idx = np.flatnonzero(active_u)
     dz = np.zeros(len(rhs))
     if idx.size == 0:
         return dz
-    o = np.where(idx[1:] == idx[:-1] + 1, off[idx[:-1]], 0.0)
-    ab = np.zeros((3, idx.size))
-    ab[0, 1:], ab[1], ab[2, :-1] = o, diag[idx], o
     try:
-        dz[idx] = solve_banded((1, 1), ab, rhs[idx], check_finite=False)
+        dz[idx] = _symmetric_tridiagonal_solve(diag[idx], np.where(idx[1:] == idx[:-1] + 1, off[idx[:-1]], 0.0),
+                                               rhs[idx])
         return dz
     except (LinAlgError, ValueError):
         pass
     # one block is singular: solve curve by curve (the blocks are independent)
     for c in np.unique(stack.u_curve[idx]):
         k = idx[stack.u_curve[idx] == c]
-        ok = np.where(k[1:] == k[:-1] + 1, off[k[:-1]], 0.0)
-        ab = np.zeros((3, k.size))
-        ab[0, 1:], ab[1], ab[2, :-1] = ok, diag[k], ok
         try:
-            dz[k] = solve_banded((1, 1), ab, rhs[k], check_finite=False)
+            dz[k] = _symmetric_tridiagonal_solve(diag[k], np.where(k[1:] == k[:-1] + 1, off[k[:-1]], 0.0), rhs[k])
         except (LinAlgError, ValueError):
             dz[k] = np.nan
     return dz
