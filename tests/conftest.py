@@ -118,3 +118,61 @@ def rigid(scene: direct.Scene, angle: float, shift, scale: float = 1.0) -> direc
 @pytest.fixture
 def rng():
     return np.random.default_rng(20261123)
+
+
+def straight_crossings_scene(seed: int, kind: str, isometric: bool = False) -> direct.Scene:
+    """Intervals whose crossings :func:`references.straight_crossings_reference` knows exactly (deterministic in seed).
+
+    ``kind``: ``"comb"``, a long spine crossed by 2 to 4 short sticks at random angles; ``"hook"``, a spine
+    crossed twice (opposite signs, one piece of ``M x M``) by a polyline that rises, bends and comes back down;
+    ``"loop"``, one polyline crossing itself once.  The spine and the runs through the crossings carry extra
+    collinear vertices; the references are horizontal lines whose segments have random lengths (their
+    deformed lengths when ``isometric``, as the reference of ``g`` needs); a random rotation, shift and scale
+    (not with ``isometric``) move the whole scene, and components are reversed or reordered at random.
+    """
+    rng = np.random.default_rng(seed)
+
+    def component(D, name, level, splits=()):
+        D = np.asarray(D, dtype=float)
+        for i, fractions in sorted(splits, key=lambda split: -split[0]):  # extra collinear vertices on segment i
+            if len(fractions):
+                D = np.insert(D, i + 1, [D[i] + f * (D[i + 1] - D[i]) for f in sorted(fractions)], axis=0)
+        w = np.hypot(*np.diff(D, axis=0).T) * (1.0 if isometric else np.exp(rng.uniform(-1.0, 1.0, len(D) - 1)))
+        ref = np.column_stack([np.concatenate([[0.0], np.cumsum(w)]), np.full(len(D), 3.0 * level)])
+        comp = direct.Component(ref, D, name=name)
+        return comp.reversed() if rng.random() < 0.5 else comp
+
+    spine = [[-4.5, 0.0], [4.5, 0.0]]
+    spine_splits = [(0, rng.uniform(0.0, 1.0, rng.integers(0, 4)))]
+    if kind == "comb":
+        xs = np.linspace(-3.5, 3.5, rng.integers(2, 5)) + rng.uniform(-0.2, 0.2)
+        comps = [component(spine, "spine", 0, spine_splits)]
+        for n, x in enumerate(xs):
+            e = np.array([np.cos(angle := rng.uniform(0.2, np.pi - 0.2)), np.sin(angle)])
+            a, b = 10.0 ** rng.uniform(-2.0, -0.6, 2)
+            comps.append(component([[x, 0.0] - a * e, [x, 0.0] + b * e], f"stick{n}", n + 1))
+        rng.shuffle(comps)
+    elif kind == "hook":
+        alpha, beta = rng.uniform(0.3, np.pi - 0.3, 2)
+        x1, h = rng.uniform(-2.0, -1.0), rng.uniform(0.8, 1.5)
+        e1, e2 = np.array([np.cos(alpha), np.sin(alpha)]), -np.array([np.cos(beta), np.sin(beta)])
+        bend = np.array([x1, 0.0]) + h / np.sin(alpha) * e1
+        x2 = bend - h / np.sin(beta) * e2 * -1.0  # where the way down meets the spine
+        c1, c2 = 10.0 ** rng.uniform(-2.0, -0.8, 2)
+        hook = [np.array([x1, 0.0]) - c1 * e1, bend, x2 + c2 * e2]
+        comps = [component(spine, "spine", 0, spine_splits),
+                 component(hook, "hook", 1, [(0, rng.uniform(0.0, 1.0, 2)), (1, rng.uniform(0.0, 1.0, 1))])]
+        rng.shuffle(comps)
+    elif kind == "loop":
+        alpha = rng.uniform(0.4, np.pi - 0.4)
+        e = np.array([np.cos(alpha), np.sin(alpha)])
+        a, d = 10.0 ** rng.uniform(-1.5, -0.5), 10.0 ** rng.uniform(-2.0, -0.8)
+        b, top = rng.uniform(1.0, 2.0, 2)
+        corner = np.array([max(b, top * e[0]) + 0.5, top * e[1] + 0.5])
+        comps = [component([[-a, 0.0], [b, 0.0], corner, top * e, -d * e], "loop", 0,
+                           [(0, rng.uniform(0.0, 1.0, 1)), (3, rng.uniform(0.0, 1.0, 1))])]
+    else:
+        raise ValueError(f"unknown kind {kind!r}")
+    scene = direct.Scene(tuple(comps), name=f"{kind} {seed}")
+    return rigid(scene, rng.uniform(0.0, 2.0 * np.pi), rng.normal(scale=3.0, size=2),
+                 1.0 if isometric else 10.0 ** rng.uniform(-0.5, 0.5))

@@ -2,7 +2,10 @@
 
 import numpy as np
 import pytest
-from references import crossing_reference
+from conftest import rigid, straight_crossings_scene
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from references import crossing_reference, straight_crossings_reference
 
 import direct
 
@@ -195,3 +198,50 @@ def test_a_crease_by_a_sliding_end_at_the_default_tol():
     res = direct.penalty(scene)
     assert abs(res.value - exact) <= res.error_estimate
     assert abs(res.value - exact) <= 1e-6 * exact
+
+
+def test_the_reference_of_straight_runs_is_the_crossing_reference_on_one_crossing():
+    """:func:`straight_crossings_reference` on ``cross`` (four true ends), moved and with a collinear vertex."""
+    for alpha, arms in [(np.pi / 3, (1.0, 1.0, 1.0, 1.0)), (0.7, (0.3, 0.9, 0.5, 1.2))]:
+        scene = direct.scenes.cross(*arms, angle=alpha)
+        first = scene.components[0]
+        split = direct.Component(np.insert(first.reference, 1, first.reference.mean(axis=0), axis=0),
+                                 np.insert(first.deformed, 1, [0.25 * first.deformed[0] + 0.75 * first.deformed[1]],
+                                           axis=0), name="A")
+        moved = rigid(direct.Scene((split, scene.components[1])), 2.1, (3.0, -1.0))
+        assert straight_crossings_reference(moved) == pytest.approx(crossing_reference(alpha, *arms), rel=1e-12)
+
+
+def test_the_reference_of_straight_runs_refuses_a_bend_nearer_than_the_ends():
+    """A run that bends close to the crossing, far from both ends: the metric beyond the bend is not the
+    crossing's, so the reference does not apply (and says so)."""
+    bent = direct.Component([[0, 0], [0.1, 0], [1.1, 0]], [[-0.5, 0], [0.05, 0], [0.55, 0.8]], name="A")
+    other = direct.Component([[0, 2], [1, 2]], [[0, -0.5], [0, 0.5]], name="B")
+    with pytest.raises(ValueError, match="bend"):
+        straight_crossings_reference(direct.Scene((bent, other)))
+
+
+@settings(max_examples=6, deadline=None, derandomize=True)
+@given(seed=st.integers(0, 10_000), kind=st.sampled_from(["comb", "hook", "loop"]))
+def test_several_crossings_to_1e5_with_a_covering_estimate(seed, kind):
+    """Combs (2 to 4 sticks across a spine), hooks (two crossings of opposite signs in one piece: the program
+    could pair them) and loops, turned, moved and scaled, with collinear vertices and uneven references,
+    at ``tol=1e-5`` (the setting issue 4 is judged at) against the rectangle argument of
+    :func:`straight_crossings_reference`."""
+    scene = straight_crossings_scene(seed, kind)
+    exact = straight_crossings_reference(scene)
+    res = direct.penalty(scene, tol=1e-5)
+    err = abs(res.value - exact)
+    assert err <= 1e-5 * exact
+    assert err <= res.error_estimate
+
+
+@pytest.mark.parametrize("kind", ["comb", "hook", "loop"])
+def test_several_crossings_with_g(kind):
+    """The same with ``g``, ``p = 2`` (``k = 4``), on isometric deformations (the reference's condition)."""
+    scene = straight_crossings_scene(7, kind, isometric=True)
+    exact = straight_crossings_reference(scene, k=4)
+    res = direct.penalty(scene, "g", power=2.0, tol=1e-5)
+    err = abs(res.value - exact)
+    assert err <= 1e-5 * exact
+    assert err <= res.error_estimate
