@@ -160,7 +160,7 @@ def _project(domain: Domain, X: np.ndarray) -> np.ndarray:
     S, V = domain.local_lengths
     ps, _ = domain.periodic
     if not ps:
-        np.minimum(np.maximum(st[:, 0], 0.0), S, out=st[:, 0])  # np.clip's numbers, without its overhead
+        np.minimum(np.maximum(st[:, 0], 0.0), S, out=st[:, 0])  # np.clip's values (a -0.0 aside), less overhead
     np.minimum(np.maximum(st[:, 1], 0.0), V, out=st[:, 1])
     X = domain.to_param(st)
     if domain.kind == "triangle":
@@ -1437,7 +1437,9 @@ def _symmetric_tridiagonal_solve(diag: np.ndarray, off: np.ndarray, rhs: np.ndar
     The routine ``scipy.linalg.solve_banded((1, 1), ...)`` calls, with the same
     arguments (so the same numbers), without its checks and batching wrapper:
     the stacked Newton solves tens of thousands of small systems, whose cost
-    is the call's.  Raises ``LinAlgError`` when ``T`` is singular.
+    is the call's.  Raises ``LinAlgError`` when ``T`` is singular and has
+    two unknowns or more; one unknown is a division, as there (``inf`` or
+    NaN, with numpy's warning, for a zero diagonal).
     """
     if diag.size == 1:  # as solve_banded: one division (dgtsv's wrapper wants off-diagonals of length >= 1)
         return rhs / diag
@@ -1450,7 +1452,7 @@ def _symmetric_tridiagonal_solve(diag: np.ndarray, off: np.ndarray, rhs: np.ndar
 
 
 def _solve_tridiagonal(stack: _Stack, diag, off, rhs, active_u):
-    """Solve the block tridiagonal system on the active unknowns; NaN for a curve whose block is singular."""
+    """Solve the block tridiagonal system on the active unknowns; not finite for a curve whose block is singular."""
     idx = np.flatnonzero(active_u)
     dz = np.zeros(len(rhs))
     if idx.size == 0:

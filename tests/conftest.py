@@ -123,12 +123,25 @@ def rng():
 def straight_crossings_scene(seed: int, kind: str, isometric: bool = False) -> direct.Scene:
     """Intervals whose crossings :func:`references.straight_crossings_reference` knows exactly (deterministic in seed).
 
-    ``kind``: ``"comb"``, a long spine crossed by 2 to 4 short sticks at random angles; ``"hook"``, a spine
-    crossed twice (opposite signs, one piece of ``M x M``) by a polyline that rises, bends and comes back down;
-    ``"loop"``, one polyline crossing itself once.  The spine and the runs through the crossings carry extra
-    collinear vertices; the references are horizontal lines whose segments have random lengths (their
-    deformed lengths when ``isometric``, as the reference of ``g`` needs); a random rotation, shift and scale
-    (not with ``isometric``) move the whole scene, and components are reversed or reordered at random.
+    Parameters
+    ----------
+    seed : int
+        Seed of the random choices.
+    kind : {"comb", "hook", "loop"}
+        ``"comb"``: a long spine crossed by 2 to 4 short sticks at random angles; ``"hook"``: a spine crossed
+        twice (opposite signs, one piece of ``M x M``) by a polyline that rises, bends and comes back down
+        (once where the way down misses the spine: seeds 21 and 25); ``"loop"``: one polyline crossing itself
+        once.
+    isometric : bool, default False
+        References with the deformed segment lengths (as the reference of ``g`` needs), and no scaling.
+
+    Returns
+    -------
+    direct.Scene
+        The spine and the runs through the crossings carry extra collinear vertices; the references are
+        horizontal lines whose segments have random lengths (unless ``isometric``); a random rotation, shift
+        and scale (not with ``isometric``) move the whole scene, and components are reversed or reordered at
+        random.
     """
     rng = np.random.default_rng(seed)
 
@@ -157,7 +170,7 @@ def straight_crossings_scene(seed: int, kind: str, isometric: bool = False) -> d
         x1, h = rng.uniform(-2.0, -1.0), rng.uniform(0.8, 1.5)
         e1, e2 = np.array([np.cos(alpha), np.sin(alpha)]), -np.array([np.cos(beta), np.sin(beta)])
         bend = np.array([x1, 0.0]) + h / np.sin(alpha) * e1
-        x2 = bend - h / np.sin(beta) * e2 * -1.0  # where the way down meets the spine
+        x2 = bend + h / np.sin(beta) * e2  # where the way down meets the spine's line
         c1, c2 = 10.0 ** rng.uniform(-2.0, -0.8, 2)
         hook = [np.array([x1, 0.0]) - c1 * e1, bend, x2 + c2 * e2]
         comps = [component(spine, "spine", 0, spine_splits),

@@ -122,30 +122,54 @@ def _straight_run(X: np.ndarray, seg: int, t: float):
     return u, (back, i < 0), (fwd, j >= len(V)), np.concatenate([[0.0], np.cumsum(L)])[seg] + t * L[seg]
 
 
+def _segment_gap(P0, P1, Q0, Q1) -> float:
+    """Euclidean distance between two segments that do not cross (the least from an end to the other segment)."""
+    def to_segment(x, a, b):
+        d = b - a
+        t = np.clip((x - a) @ d / (d @ d), 0.0, 1.0)
+        return float(np.hypot(*(a + t * d - x)))
+
+    return min(to_segment(P0, Q0, Q1), to_segment(P1, Q0, Q1), to_segment(Q0, P0, P1), to_segment(Q1, P0, P1))
+
+
 def straight_crossings_reference(scene, k: int = 2) -> float:
     """``J`` of a scene of intervals whose crossings each see a component end before any bend.
 
     Not computed with ``direct``.  Every transversal crossing of two segments
     lies in a rectangle of ``M x M`` on which both deformed polylines are
     straight: the maximal straight runs through it, ``[-a, b] x [-c, d]`` in
-    deformed arclength.  There the metric is that of :func:`crossing_reference`,
-    so the distance from the crossing to each side is the least of
-    ``|x|^(k+1) f(theta)`` along it.  A side is part of the boundary of
-    ``M x M`` when its run ends at an end of its polyline; otherwise at a
-    bend, beyond which the metric differs.  When the nearest side is a true end
-    (every bent side farther) and the rectangles of one piece are disjoint
-    (with their mirror images on a polyline with itself), every curve from the
-    crossing point travels at least that distance before it leaves its
-    rectangle, and the straight way to that end achieves it: ``J`` is twice the
-    sum of those distances (both points of each crossing), whatever the
-    matching could pair.  ``G`` with power ``q``: ``k = q``; ``g`` with power
-    ``p`` on an isometric deformation: ``k = 2 p``.
+    deformed arclength (for a polyline with itself, two different runs, whose
+    parameter intervals meet at most at a bend: the rectangle lies in the
+    triangle ``x1 < x2``).  There the metric is that of
+    :func:`crossing_reference`, so the distance from the crossing to each side
+    is the least of ``|x|^(k+1) f(theta)`` along it.  A side is part of the
+    boundary of ``M x M`` when its run ends at an end of its polyline;
+    otherwise at a bend, beyond which the metric differs.  When the nearest side
+    is a true end (every bent side farther) and the rectangles of one piece are
+    disjoint, every curve from the crossing point travels at least that
+    distance before it leaves its rectangle, and the straight way to that end
+    achieves it: ``J`` is twice the sum of those distances (both points of each
+    crossing), whatever the matching could pair.
+
+    Parameters
+    ----------
+    scene : direct.Scene
+        Open components only.
+    k : int, default 2
+        Degree of ``rho``: ``k = q`` for ``G`` with power ``q``; ``k = 2 p``
+        for ``g`` with power ``p`` on an isometric deformation.
+
+    Returns
+    -------
+    float
+        ``J`` (length units to the power ``k + 1``).
 
     Raises
     ------
     ValueError
-        Where the argument does not apply: a closed component, a crossing at a
-        vertex, a bend nearer than every end, overlapping rectangles.
+        Where the argument does not apply: a closed component, a crossing at
+        or within 1e-9 (of the segments) of a vertex, parallel segments that
+        touch, a bend as near as every end, overlapping rectangles.
     """
     comps = scene.components
     if any(c.closed for c in comps):
@@ -157,14 +181,17 @@ def straight_crossings_reference(scene, k: int = 2) -> float:
             for i in range(len(P) - 1):
                 for j in range(i + 2 if ia == ib else 0, len(Q) - 1):
                     u, v, w = P[i + 1] - P[i], Q[j + 1] - Q[j], Q[j] - P[i]
+                    lu, lv = np.hypot(*u), np.hypot(*v)
                     den = u[0] * v[1] - u[1] * v[0]
-                    if abs(den) <= 1e-12 * np.hypot(*u) * np.hypot(*v):  # parallel (collinear pieces of one run)
+                    if abs(den) <= 1e-12 * lu * lv:  # parallel: apart (collinear pieces of one run), or no reference
+                        if _segment_gap(P[i], P[i + 1], Q[j], Q[j + 1]) <= 1e-9 * (lu + lv):
+                            raise ValueError("parallel segments that touch")
                         continue
                     t = (w[0] * v[1] - w[1] * v[0]) / den
                     s = (w[0] * u[1] - w[1] * u[0]) / den
-                    if not (0.0 <= t <= 1.0 and 0.0 <= s <= 1.0):
+                    if not (-1e-9 <= t <= 1.0 + 1e-9 and -1e-9 <= s <= 1.0 + 1e-9):
                         continue
-                    if t in (0.0, 1.0) or s in (0.0, 1.0):
+                    if min(t, 1.0 - t, s, 1.0 - s) <= 1e-9:  # rounding could count it twice, or not at all
                         raise ValueError("a crossing at a vertex")
                     ua, (a, end_a), (b, end_b), xa = _straight_run(P, i, t)
                     ub, (c, end_c), (d, end_d), xb = _straight_run(Q, j, s)
@@ -181,9 +208,8 @@ def straight_crossings_reference(scene, k: int = 2) -> float:
                     rect = ((xa - a, xa + b), (xb - c, xb + d))
                     eps = 1e-9 * (a + b + c + d)  # rectangles that share a side (the runs meet at a bend) are disjoint
                     for other in rects.get((ia, ib), []):
-                        for o in ((other, other[::-1]) if ia == ib else (other,)):
-                            if all(r[0] < q[1] - eps and q[0] < r[1] - eps for r, q in zip(rect, o)):
-                                raise ValueError("overlapping rectangles")
+                        if all(r[0] < q[1] - eps and q[0] < r[1] - eps for r, q in zip(rect, other)):
+                            raise ValueError("overlapping rectangles")
                     rects.setdefault((ia, ib), []).append(rect)
                     total += 2.0 * true
     return total

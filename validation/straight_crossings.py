@@ -1,6 +1,6 @@
 """Several crossings of straight runs against an exact reference, at ``tol=1e-5`` and ``1e-7``.
 
-Run ``python validation/straight_crossings.py`` (about three minutes).  The scenes of
+Run ``python validation/straight_crossings.py`` (about a minute and a half).  The scenes of
 ``tests/conftest.py``'s ``straight_crossings_scene``: combs (a spine crossed by 2 to 4 sticks), hooks (a
 spine crossed twice, with opposite signs, in one piece of ``M x M``: the program could pair the two points)
 and loops (one polyline crossing itself), with extra collinear vertices, uneven references, turned, moved
