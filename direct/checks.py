@@ -7,6 +7,7 @@ fault and says what to do.
 
 from __future__ import annotations
 
+import inspect
 import numbers
 from typing import Any
 
@@ -206,15 +207,13 @@ def free_name(name: str, taken: set) -> str:
     return name
 
 
-#: the options of direct.penalty, refused as top-level keys of a scene file (they would be ignored)
-_OPTIONS = {"metric", "power", "tol", "resolution", "neighbours", "backend", "refine", "second_pass", "coarsen"}
-
-
 def parse_scene_dict(data: Any) -> list[dict[str, Any]]:
     """Check the JSON structure of a scene; return the keyword arguments of each component."""
     if not isinstance(data, dict) or "components" not in data:
         raise SceneFileError('a scene is a JSON object with a "components" list: {"components": [...]}')
-    options = sorted(set(data) & _OPTIONS)
+    from .penalty import penalty  # the options of direct.penalty, refused as top-level keys (they would be ignored)
+
+    options = sorted(set(data) & (set(inspect.signature(penalty).parameters) - {"scene"}))
     if options:  # not read from the file: say so rather than compute with the defaults
         raise SceneFileError(
             f"a scene file holds the scene only, not the options {options}: pass them to direct.penalty "
