@@ -359,17 +359,24 @@ def _show_warning(message, category, filename, lineno, file=None, line=None) -> 
     print(f"direct: warning ({category.__name__}): {text}", file=sys.stderr if file is None else file)
 
 
-#: the options whose value is a number, and a negative number in scientific notation (argparse takes "-1e-3" for
-#: an option, so that "--tol -1e-3" failed as "expected one argument" rather than with the range of tol)
-_NUMERIC = ("--tol", "--power", "--resolution", "--coarsen", "--neighbours")
+#: a negative number, in scientific notation too (argparse takes "-1e-3" for an option, so that "--tol -1e-3"
+#: failed as "expected one argument" rather than with the range of tol)
 _NEGATIVE = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$|^-(inf|infinity|nan)$", re.IGNORECASE)
+
+
+def _numeric_options() -> set[str]:
+    """The options of :func:`_add_method_options` whose value is a number (``--tol``, ``--power``, ...)."""
+    p = argparse.ArgumentParser(add_help=False)
+    _add_method_options(p)
+    return {s for a in p._actions if a.type in (int, float) for s in a.option_strings}
 
 
 def _joined_numbers(argv: list[str]) -> list[str]:
     """``--tol -1e-3`` as ``--tol=-1e-3``: a negative value reaches the option's own check."""
+    numeric = _numeric_options()
     out: list[str] = []
     for a in argv:
-        if out and out[-1] in _NUMERIC and _NEGATIVE.match(a):
+        if out and out[-1] in numeric and _NEGATIVE.match(a):
             out[-1] = f"{out[-1]}={a}"
         else:
             out.append(a)
