@@ -152,6 +152,16 @@ def _segment_derivatives(metric: Metric, comps, P: np.ndarray, Q: np.ndarray, st
     return f[:m], g[0], H
 
 
+def _clip(a, lo, hi, out=None):
+    """``np.clip(a, lo, hi)`` as its two ufuncs, without its Python overhead (hot paths; a -0.0 may come out +0.0)."""
+    return np.minimum(np.maximum(a, lo), hi, out=out)
+
+
+def _row_norms(d: np.ndarray) -> np.ndarray:
+    """``np.linalg.norm(d, axis=1)``, the same numbers, without its Python overhead (hot paths)."""
+    return np.sqrt(np.add.reduce(d * d, axis=1))
+
+
 def _project(domain: Domain, X: np.ndarray) -> np.ndarray:
     """Put polyline vertices (parameters, unwrapped) back into the closed domain."""
     if domain.kind == "torus":
@@ -160,8 +170,8 @@ def _project(domain: Domain, X: np.ndarray) -> np.ndarray:
     S, V = domain.local_lengths
     ps, _ = domain.periodic
     if not ps:
-        np.minimum(np.maximum(st[:, 0], 0.0), S, out=st[:, 0])  # np.clip's values (a -0.0 aside), less overhead
-    np.minimum(np.maximum(st[:, 1], 0.0), V, out=st[:, 1])
+        _clip(st[:, 0], 0.0, S, out=st[:, 0])
+    _clip(st[:, 1], 0.0, V, out=st[:, 1])
     X = domain.to_param(st)
     if domain.kind == "triangle":
         low = X[:, 1] < X[:, 0]
@@ -339,7 +349,7 @@ class _Parametrization:
         """Keep sliding vertices within their stretch of line."""
         k = self._slide_idx
         if k.size:
-            z[k] = np.minimum(np.maximum(z[k], self._lo), self._hi)  # np.clip's numbers, without its overhead
+            z[k] = _clip(z[k], self._lo, self._hi)
         return z
 
     def unpack(self, z: np.ndarray) -> np.ndarray:
@@ -1336,7 +1346,7 @@ class _Stack:
         self.Ev[self.u_vertex] = self.E
 
     def clip(self, z):
-        return np.minimum(np.maximum(z, self.lo), self.hi)
+        return _clip(z, self.lo, self.hi)
 
     def pack(self, X):
         return self.clip(((X - self.X0)[self.u_vertex] * self.E).sum(axis=1) / self.ediag)
@@ -1370,7 +1380,7 @@ class _Stack:
         v = np.flatnonzero(curves[self.v_curve])
         u = np.flatnonzero(curves[self.u_curve])
         ts = t[self.u_curve[u]] * 0.5 ** np.arange(k)[:, None]  # halving is exact: the line search's own steps
-        Z = np.minimum(np.maximum(z[u] + ts * dz[u], self.lo[u]), self.hi[u])
+        Z = _clip(z[u] + ts * dz[u], self.lo[u], self.hi[u])
         X = np.repeat(self.X0[v][None], k, axis=0)
         X[:, np.searchsorted(v, self.u_vertex[u])] += Z[:, :, None] * self.E[u]
         X = _project(self.domain, X.reshape(-1, 2)).reshape(k, len(v), 2)
@@ -1391,8 +1401,7 @@ class _Stack:
         """
         s, P, Q = self._segments(X, curves)
         m = len(s)
-        seg = Q - P
-        seg = np.sqrt(np.add.reduce(seg * seg, axis=1))  # np.linalg.norm's numbers, without its overhead
+        seg = _row_norms(Q - P)
         h = np.minimum(1e-6 * self.scale, np.maximum(1e-3 * seg, 1e-9 * self.scale))[:, None]  # short, short steps
         p = self.seg_p[s]
         Ep, Eq = self.Ev[p], self.Ev[p + 1]
@@ -1419,8 +1428,7 @@ class _Stack:
 
     def step_limits(self, X, dz, curves):
         """Largest step fraction per curve that moves no vertex more than half its shorter segment."""
-        seg = X[self.seg_p + 1] - X[self.seg_p]
-        seg = np.sqrt(np.add.reduce(seg * seg, axis=1))  # np.linalg.norm's numbers, without its overhead
+        seg = _row_norms(X[self.seg_p + 1] - X[self.seg_p])
         mean = np.bincount(self.s_curve, weights=seg, minlength=self.C) / np.maximum(self.n_seg, 1)
         room = np.minimum(seg[self.u_prev], seg[self.u_next])
         room = np.maximum(room, 0.25 * mean[self.u_curve])  # a vertex beside a tiny segment may still move
