@@ -25,6 +25,7 @@ NUMERICS.md value 0.2581226580725618 to 1e-13.
 from __future__ import annotations
 
 import numpy as np
+import shapely
 from scipy.integrate import solve_ivp
 from scipy.optimize import minimize_scalar
 
@@ -122,16 +123,6 @@ def _straight_run(X: np.ndarray, seg: int, t: float):
     return u, (back, i < 0), (fwd, j >= len(V)), np.concatenate([[0.0], np.cumsum(L)])[seg] + t * L[seg]
 
 
-def _segment_gap(P0, P1, Q0, Q1) -> float:
-    """Euclidean distance between two segments that do not cross (the least from an end to the other segment)."""
-    def to_segment(x, a, b):
-        d = b - a
-        t = np.clip((x - a) @ d / (d @ d), 0.0, 1.0)
-        return float(np.hypot(*(a + t * d - x)))
-
-    return min(to_segment(P0, Q0, Q1), to_segment(P1, Q0, Q1), to_segment(Q0, P0, P1), to_segment(Q1, P0, P1))
-
-
 def straight_crossings_reference(scene, k: int = 2) -> float:
     """``J`` of a scene of intervals whose crossings each see a component end before any bend.
 
@@ -184,7 +175,8 @@ def straight_crossings_reference(scene, k: int = 2) -> float:
                     lu, lv = np.hypot(*u), np.hypot(*v)
                     den = u[0] * v[1] - u[1] * v[0]
                     if abs(den) <= 1e-12 * lu * lv:  # parallel: apart (collinear pieces of one run), or no reference
-                        if _segment_gap(P[i], P[i + 1], Q[j], Q[j + 1]) <= 1e-9 * (lu + lv):
+                        if shapely.distance(shapely.linestrings([P[i], P[i + 1]]),
+                                            shapely.linestrings([Q[j], Q[j + 1]])) <= 1e-9 * (lu + lv):
                             raise ValueError("parallel segments that touch")
                         continue
                     t = (w[0] * v[1] - w[1] * v[0]) / den
