@@ -6,6 +6,7 @@ import sys
 
 import numpy as np
 import pytest
+from references import crossing_reference
 
 import direct
 
@@ -189,3 +190,27 @@ def straight_crossings_scene(seed: int, kind: str, isometric: bool = False) -> d
     scene = direct.Scene(tuple(comps), name=f"{kind} {seed}")
     return rigid(scene, rng.uniform(0.0, 2.0 * np.pi), rng.normal(scale=3.0, size=2),
                  1.0 if isometric else 10.0 ** rng.uniform(-0.5, 0.5))
+
+
+def slowed_cross(arms, alpha, cuts, lengths=None):
+    """``cross(*arms, angle=alpha)`` with each arm cut at the fractions ``cuts[k]`` of its deformed length, the
+    reference vertices equally spaced over ``lengths[k]`` (default: the arm's length): the speed jumps at the
+    cut, and differs between the arms (``G`` sees neither, Example 14)."""
+    a, b, c, d = arms
+    lengths = (a + b, c + d) if lengths is None else lengths
+    e = np.array([np.cos(alpha), np.sin(alpha)])
+    comps = []
+    for k, (start, end) in enumerate(((np.array([-a, 0.0]), np.array([b, 0.0])), (-c * e, d * e))):
+        t = np.concatenate([[0.0], np.atleast_1d(cuts[k]), [1.0]])  # one cut or several
+        reference = np.column_stack([np.linspace(0.0, lengths[k], len(t)), np.full(len(t), 10.0 * k)])
+        comps.append(direct.Component(reference, start + t[:, None] * (end - start), name="AB"[k]))
+    return direct.Scene(tuple(comps))
+
+
+def crease_by_a_sliding_end() -> tuple[direct.Scene, float]:
+    """A crossing near a corner whose geodesic meets the side next to a vertex line, and its ``J``: local geodesics
+    2.7e-4 to 8.6e-4 (relative) longer end on the same side, in the same strip between vertex lines, closer than
+    the route check's coarse pass (2 %) can tell apart; which one the grid's route leads to depends on the grid
+    and on the scene's position (``validation/crease_motions.py``)."""
+    arms, alpha = (0.0953, 0.0776, 0.0495, 0.0713), 2.390
+    return slowed_cross(arms, alpha, ((0.695, 0.779), 0.0856), (0.1729, 0.1207)), crossing_reference(alpha, *arms)

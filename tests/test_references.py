@@ -2,7 +2,7 @@
 
 import numpy as np
 import pytest
-from conftest import rigid, straight_crossings_scene
+from conftest import crease_by_a_sliding_end, rigid, slowed_cross, straight_crossings_scene
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from references import crossing_reference, straight_crossings_reference
@@ -123,21 +123,6 @@ def test_a_fold_next_to_the_crossing_point_is_dropped():
         assert ((d[:-1] * d[1:]).sum(axis=1) >= 0).all()  # no turn back anywhere
 
 
-def _slowed(arms, alpha, cuts, lengths=None):
-    """``cross(*arms, angle=alpha)`` with each arm cut at the fractions ``cuts[k]`` of its deformed length, the
-    reference vertices equally spaced over ``lengths[k]`` (default: the arm's length): the speed jumps at the
-    cut, and differs between the arms (``G`` sees neither, Example 14)."""
-    a, b, c, d = arms
-    lengths = (a + b, c + d) if lengths is None else lengths
-    e = np.array([np.cos(alpha), np.sin(alpha)])
-    comps = []
-    for k, (start, end) in enumerate(((np.array([-a, 0.0]), np.array([b, 0.0])), (-c * e, d * e))):
-        t = np.concatenate([[0.0], np.atleast_1d(cuts[k]), [1.0]])  # one cut or several
-        reference = np.column_stack([np.linspace(0.0, lengths[k], len(t)), np.full(len(t), 10.0 * k)])
-        comps.append(direct.Component(reference, start + t[:, None] * (end - start), name="AB"[k]))
-    return direct.Scene(tuple(comps))
-
-
 def test_a_valley_out_of_a_crossing_is_followed_across_a_vertex_line():
     """A crossing 0.024 from a side, on an arm 40 times slower beyond a vertex 0.007 away, at 174 degrees: the
     straight move along the valley (with the speeds at the point) leaves it past the vertex line, and the
@@ -146,7 +131,7 @@ def test_a_valley_out_of_a_crossing_is_followed_across_a_vertex_line():
     estimate).  The valley is now followed in deformed arclength (``direct.grid._valley_rays``)."""
     arms, alpha = (0.024, 0.74, 0.032, 1.84), 3.04
     exact = crossing_reference(alpha, *arms)
-    scene = _slowed(arms, alpha, (0.023, 0.27))
+    scene = slowed_cross(arms, alpha, (0.023, 0.27))
     for kwargs in ({"second_pass": False}, {}):
         res = direct.penalty(scene, tol=1e-5, **kwargs)
         err = abs(res.value - exact)
@@ -165,17 +150,10 @@ def test_an_end_on_the_boundary_of_a_stretched_domain_slides_into_place(tol):
     alpha = 2.589099418243501
     exact = crossing_reference(alpha, *arms)
     # the arms of seed 1005 (scaled), cut where that scene has its vertices, on its reference lengths
-    res = direct.penalty(_slowed(arms, alpha, (0.9446, 0.4962), (0.9265, 1.6177)), tol=tol)
+    res = direct.penalty(slowed_cross(arms, alpha, (0.9446, 0.4962), (0.9265, 1.6177)), tol=tol)
     err = abs(res.value - exact)
     assert err <= tol * exact
     assert err <= res.error_estimate <= tol * exact  # at 1e-7 the estimate was 5e-7 with 512 segments at most
-
-
-def _crease_by_a_sliding_end():
-    """A crossing near a corner whose geodesic meets the side next to a vertex line: two local geodesics,
-    2.7e-4 apart, closer than the route check's coarse pass (2 %) can tell apart."""
-    arms, alpha = (0.0953, 0.0776, 0.0495, 0.0713), 2.390
-    return _slowed(arms, alpha, ((0.695, 0.779), 0.0856), (0.1729, 0.1207)), crossing_reference(alpha, *arms)
 
 
 @pytest.mark.filterwarnings("ignore::direct.ToleranceWarning")  # the spread of the two starts exceeds 1e-5
@@ -183,7 +161,7 @@ def _crease_by_a_sliding_end():
 def test_a_crease_by_a_sliding_end_is_covered_by_the_second_pass(tol, second_pass):
     """From a scratch sweep of crossings with uneven speeds (docs/record.md, *Above tol = 1e-4*): the second start
     finds the shorter of the two local geodesics and its spread enters the estimate."""
-    scene, exact = _crease_by_a_sliding_end()
+    scene, exact = crease_by_a_sliding_end()
     res = direct.penalty(scene, tol=tol, second_pass=second_pass)
     err = abs(res.value - exact)
     assert err <= tol * exact
@@ -194,10 +172,23 @@ def test_a_crease_by_a_sliding_end_at_the_default_tol():
     """At the default tol=1e-3 one start and the route check settled in the longer local geodesic, 2.7e-4 off
     with an estimate of 1.1e-4 (within tol; an ``xfail`` until stop 27): the route ran through a corner of the
     cells and the refinement stayed there. The starts beside the corner (``_corner_starts``) find the geodesic."""
-    scene, exact = _crease_by_a_sliding_end()
+    scene, exact = crease_by_a_sliding_end()
     res = direct.penalty(scene)
     assert abs(res.value - exact) <= res.error_estimate
     assert abs(res.value - exact) <= 1e-6 * exact
+
+
+@pytest.mark.parametrize("angle", [0.0, 0.7, 1.6, 2.9])
+def test_a_crease_by_a_sliding_end_on_a_finer_grid(angle):
+    """The same scene on a grid of 176 cells, turned: the curve to the side ended at 0.0612 along it (of the strip
+    from 0.0576 to 0.1153), where the geodesic ends at 0.0632, and no corner start ran (the route passed no corner
+    of the cells). The strip start from the next strip slid back into the curve's own strip, to 0.0625, with a
+    coarse geodesic 4.1e-4 (relative) shorter than the curve's own, and was dropped for ending in that strip:
+    3.6e-4 off with an estimate of 1.6e-4 at each angle. A strip start now counts wherever it ends."""
+    scene, exact = crease_by_a_sliding_end()
+    res = direct.penalty(rigid(scene, angle, (-0.3, 0.2)), resolution=176)
+    assert abs(res.value - exact) <= res.error_estimate
+    assert abs(res.value - exact) <= 1e-3 * exact
 
 
 def test_the_reference_of_straight_runs_is_the_crossing_reference_on_one_crossing():
