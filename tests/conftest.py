@@ -214,3 +214,51 @@ def crease_by_a_sliding_end() -> tuple[direct.Scene, float]:
     and on the scene's position (``validation/crease_motions.py``)."""
     arms, alpha = (0.0953, 0.0776, 0.0495, 0.0713), 2.390
     return slowed_cross(arms, alpha, ((0.695, 0.779), 0.0856), (0.1729, 0.1207)), crossing_reference(alpha, *arms)
+
+
+def cylinder_scene(seed: int, isometric: bool = False, flip: bool = False) -> direct.Scene:
+    """An interval that crosses a square once near the middle of its left side, moved, for ``cylinder_reference``.
+
+    Even seeds put the reference interval outside the reference square, odd
+    seeds inside: the curve of the crossing must end at the interval's inside
+    end, or its outside end (``tests/references.py``). The arm towards the
+    end it must reach is the longer (0.3 to 0.8 times the other is the
+    shorter), so the nearer end is the wrong one. The square has 0 to 3
+    collinear vertices on each side, is listed from a random vertex and
+    maybe backwards; the interval maybe backwards, the two in either order;
+    the whole turned, shifted and (unless ``isometric``, for ``g``) scaled by
+    up to 10 either way, its reference lengths then stretched by up to e.
+    ``flip`` puts the reference interval on the other side of the square, the
+    deformed scene unchanged: the curve must then reach the nearer end.
+    """
+    rng = np.random.default_rng(9000 + seed)
+    outside = seed % 2 == 0
+    angle = rng.uniform(1.25, np.pi - 1.25) - np.pi / 2  # the interval's direction, near the side's normal
+    y0 = rng.uniform(-1.0, 1.0)
+    far = rng.uniform(0.3, 1.0)
+    near = far * rng.uniform(0.3, 0.8)
+    a, b = (near, far) if outside else (far, near)  # a: the outside arm, b: the inside arm
+    e = np.array([np.cos(angle), np.sin(angle)])
+    X = np.array([-2.0, y0])
+    deformed = np.array([X - a * e, X + b * e])
+    L = a + b
+    stretch = L if isometric else L * np.exp(rng.uniform(-1.0, 1.0))
+    reference = (np.array([[-8.0, 5.0], [-8.0 + stretch, 5.0]]) if outside != flip
+                 else np.array([[-1.6, -0.3], [-1.6 + min(3.2, stretch), -0.3]]))
+    corners = np.array([[-2.0, -2.0], [2.0, -2.0], [2.0, 2.0], [-2.0, 2.0]])
+    pts = []
+    for i in range(4):
+        p, q = corners[i], corners[(i + 1) % 4]
+        pts.append(p)
+        pts.extend(p + f * (q - p) for f in np.sort(rng.uniform(0.05, 0.95, rng.integers(0, 4))))
+    square = np.roll(np.array(pts), rng.integers(0, len(pts)), axis=0)
+    if rng.random() < 0.5:
+        square = square[::-1]
+    polygon = direct.Component(square, square, closed=True, name="square")
+    interval = direct.Component(reference, deformed, name="interval")
+    if rng.random() < 0.5:
+        interval = interval.reversed()
+    comps = (polygon, interval) if rng.random() < 0.5 else (interval, polygon)
+    scene = direct.Scene(comps, name=f"cylinder {seed}")
+    return rigid(scene, rng.uniform(0.0, 2.0 * np.pi), rng.normal(scale=10.0, size=2),
+                 1.0 if isometric else 10.0 ** rng.uniform(-1.0, 1.0))

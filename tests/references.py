@@ -1,5 +1,9 @@
 """Independent reference values of J for two straight segments crossing at any angle.
 
+Also for several crossings of straight runs (:func:`straight_crossings_reference`) and for an interval
+crossing a polygon once (:func:`cylinder_reference`, where the winding numbers decide which end the curve
+must reach).
+
 Not computed with `direct`: for two unit-speed segments crossing at the origin
 at angle ``alpha`` the length element is ``rho |dx|`` with
 ``rho = (x1^2 + x2^2 - 2 x1 x2 cos alpha)^(k/2)`` (``k = 2`` for ``G``,
@@ -205,3 +209,142 @@ def straight_crossings_reference(scene, k: int = 2) -> float:
                     rects.setdefault((ia, ib), []).append(rect)
                     total += 2.0 * true
     return total
+
+
+def _winding_number(polygon: np.ndarray, point) -> int:
+    """Winding number of the closed polyline ``polygon`` (each vertex once) around ``point`` (not on it)."""
+    d = np.asarray(polygon, float) - np.asarray(point, float)
+    a = np.arctan2(d[:, 1], d[:, 0])
+    turn = np.diff(np.concatenate([a, a[:1]]))
+    return int(round(float(np.sum((turn + np.pi) % (2 * np.pi) - np.pi)) / (2 * np.pi)))
+
+
+def _closed_run(X: np.ndarray, seg: int, t: float):
+    """:func:`_straight_run` on a closed polyline: the arclength back and forward to the bends of the straight
+    run through the point at fraction ``t`` of segment ``seg`` (a polygon has no ends)."""
+    V = np.roll(X, -1, axis=0) - X
+    L = np.hypot(V[:, 0], V[:, 1])
+    u = V[seg] / L[seg]
+
+    def straight(i):
+        w = V[i % len(V)] / L[i % len(V)]
+        return abs(w[0] * u[1] - w[1] * u[0]) < 1e-12 and w @ u > 0
+
+    back, i = t * L[seg], seg - 1
+    while straight(i):
+        back, i = back + L[i % len(V)], i - 1
+    fwd, j = (1.0 - t) * L[seg], seg + 1
+    while straight(j):
+        fwd, j = fwd + L[j % len(V)], j + 1
+    return u, back, fwd
+
+
+def cylinder_reference(scene, k: int = 2, samples: int = 4000) -> float:
+    """``J`` of an interval that crosses a polygon once: the curve must go to the end whose winding number changed.
+
+    Not computed with ``direct``.  The piece of ``M x M`` of an interval ``I``
+    and a circle ``C`` is a cylinder, whose boundary is the two circles
+    ``{end} x C``.  ``j`` embeds both, so the reference polygon winds the same
+    number of times ``w_j`` round every point of the reference interval; in
+    the deformed scene it winds ``w(e)`` times round each end ``e`` of the
+    interval, and one crossing changes it by one along the interval.  As for
+    the turning number of a circle (Proposition 11), the curves of the pair's
+    crossing point must end on the boundary circle of the end where ``w(e)``
+    differs from ``w_j``: the flux of the current through that circle.  The
+    crossing lies in the rectangle ``[-a, b] x [-c, d]`` of the interval (its
+    sides ``x1 = -a, b`` the interval's ends) and of the straight run of the
+    polygon through it (its sides ``x2 = -c, d`` at bends).  ``J`` is twice the
+    distance (:func:`crossing_reference`'s profile) from the crossing to the
+    side of the allowed end when that is at most the distance to either bent
+    side (a curve that leaves the rectangle there is already longer) and at
+    most the distance to the other end plus a lower bound of a curve across
+    the cylinder from one boundary circle to the other (which a curve to the
+    wrong end would need): ``int dist(phi(s), polygon)^k ds`` over the
+    interval, each of ``samples`` stretches bounded below by its midpoint's
+    distance less half its length (the distance is 1-Lipschitz).  The polygon
+    alone and the interval alone cross nothing and keep their turning
+    numbers: their pieces add nothing.
+
+    Parameters
+    ----------
+    scene : direct.Scene
+        One open component, straight from end to end (collinear vertices
+        allowed), and one closed polygon, simple in both embeddings and
+        oriented alike in both.
+    k : int, default 2
+        As in :func:`straight_crossings_reference` (``g`` only for an
+        isometric deformation).
+
+    Returns
+    -------
+    float
+        ``J`` (length units to the power ``k + 1``).
+
+    Raises
+    ------
+    ValueError
+        Where the argument does not apply: other components, a bent interval,
+        a polygon that is not simple or turns the other way once deformed, a
+        reference interval that meets its polygon, not exactly one crossing,
+        a crossing within 1e-9 (of the segments) of a vertex, an allowed end
+        farther than a bent side or than the other end with the crossing curve.
+    """
+    comps = scene.components
+    opens = [c for c in comps if not c.closed]
+    closed = [c for c in comps if c.closed]
+    if len(opens) != 1 or len(closed) != 1:
+        raise ValueError("one interval and one polygon")
+    I_ref, I_def = np.asarray(opens[0].reference, float), np.asarray(opens[0].deformed, float)
+    C_ref, C_def = np.asarray(closed[0].reference, float), np.asarray(closed[0].deformed, float)
+    if not (shapely.Polygon(C_ref).is_valid and shapely.Polygon(C_def).is_valid):
+        raise ValueError("a polygon that is not simple")
+    if shapely.LinearRing(C_ref).is_ccw != shapely.LinearRing(C_def).is_ccw:
+        raise ValueError("the polygon turns the other way once deformed (its turning number changed)")
+    if shapely.intersects(shapely.linestrings(I_ref), shapely.LinearRing(C_ref)):
+        raise ValueError("the reference interval meets its polygon")
+    u0 = I_def[-1] - I_def[0]
+    length = float(np.hypot(*u0))
+    V = np.diff(I_def, axis=0)
+    if np.any(np.abs(V[:, 0] * u0[1] - V[:, 1] * u0[0]) > 1e-12 * length * np.hypot(V[:, 0], V[:, 1])) or np.any(
+            V @ u0 <= 0):
+        raise ValueError("a bent interval")
+    u = u0 / length
+    P, Q = I_def[0], I_def[-1]
+    crossings = []
+    for j in range(len(C_def)):
+        A, B = C_def[j], C_def[(j + 1) % len(C_def)]
+        v, w = B - A, A - P
+        den = (Q - P)[0] * v[1] - (Q - P)[1] * v[0]
+        if abs(den) <= 1e-12 * length * np.hypot(*v):
+            if shapely.distance(shapely.linestrings([P, Q]), shapely.linestrings([A, B])) <= 1e-9 * length:
+                raise ValueError("the interval runs along a side of the polygon")
+            continue
+        t = (w[0] * v[1] - w[1] * v[0]) / den
+        s = (w[0] * (Q - P)[1] - w[1] * (Q - P)[0]) / den
+        if -1e-9 <= t <= 1.0 + 1e-9 and -1e-9 <= s <= 1.0 + 1e-9:
+            if min(s, 1.0 - s) <= 1e-9 or any(np.hypot(*(P + t * (Q - P) - x)) <= 1e-9 * length for x in I_def):
+                raise ValueError("a crossing at a vertex")
+            crossings.append((j, t, s))
+    if len(crossings) != 1:
+        raise ValueError(f"{len(crossings)} crossings, not one")
+    j, t, s = crossings[0]
+    a, b = t * length, (1.0 - t) * length
+    ub, c, d = _closed_run(C_def, j, s)
+    alpha = float(np.arccos(np.clip(u @ ub, -1.0, 1.0)))
+    f = _profile(alpha, k)
+    to_start = _side_distance(f, k, np.array([-a, 0.0]), np.array([0.0, 1.0]), -c, d)
+    to_end = _side_distance(f, k, np.array([b, 0.0]), np.array([0.0, 1.0]), -c, d)
+    bent = min(_side_distance(f, k, np.array([0.0, -c]), np.array([1.0, 0.0]), -a, b),
+               _side_distance(f, k, np.array([0.0, d]), np.array([1.0, 0.0]), -a, b))
+    w_ref = _winding_number(C_ref, I_ref[0])
+    changed = [_winding_number(C_def, e) != w_ref for e in (P, Q)]
+    if changed.count(True) != 1:
+        raise ValueError("no end whose winding number changed alone")
+    allowed, other = (to_start, to_end) if changed[0] else (to_end, to_start)
+    h = length / samples
+    mids = P + np.outer((np.arange(samples) + 0.5) * h, u)
+    gaps = shapely.distance(shapely.points(mids), shapely.LinearRing(C_def))
+    across = float(np.sum(np.maximum(gaps - 0.5 * h, 0.0) ** k) * h)
+    if not (allowed * (1.0 + 1e-9) < bent and allowed < (other + across) * (1.0 - 1e-6)):
+        raise ValueError("the allowed end is not the nearest way out")
+    return 2.0 * allowed

@@ -2,10 +2,10 @@
 
 import numpy as np
 import pytest
-from conftest import crease_by_a_sliding_end, rigid, slowed_cross, straight_crossings_scene
+from conftest import crease_by_a_sliding_end, cylinder_scene, rigid, slowed_cross, straight_crossings_scene
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from references import crossing_reference, straight_crossings_reference
+from references import crossing_reference, cylinder_reference, straight_crossings_reference
 
 import direct
 
@@ -236,3 +236,58 @@ def test_several_crossings_with_g(kind):
     err = abs(res.value - exact)
     assert err <= 1e-5 * exact
     assert err <= res.error_estimate
+
+
+@settings(max_examples=8, deadline=None)
+@given(seed=st.integers(0, 10_000))
+def test_an_interval_across_a_polygon_reaches_the_end_its_winding_number_names(seed):
+    """An interval crossing a polygon once (a cylinder piece of ``M x M``): the curve of the crossing must end
+    at the end whose winding number changed (``cylinder_reference``), the farther one in these scenes."""
+    scene = cylinder_scene(seed)
+    exact = cylinder_reference(scene)
+    res = direct.penalty(scene, tol=1e-5)
+    err = abs(res.value - exact)
+    assert err <= 1e-5 * exact
+    assert err <= res.error_estimate
+
+
+@pytest.mark.parametrize("seed", [0, 1, 4, 5])
+def test_an_interval_across_a_polygon_with_g(seed):
+    """The same with ``g`` (``p = 2``) on isometric scenes, where its length element is ``|r|^4 |dx|``."""
+    scene = cylinder_scene(seed, isometric=True)
+    exact = cylinder_reference(scene, k=4)
+    res = direct.penalty(scene, "g", tol=1e-5)
+    err = abs(res.value - exact)
+    assert err <= 1e-5 * exact
+    assert err <= res.error_estimate
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_moving_the_reference_interval_across_the_polygon_moves_the_curve_to_the_other_end(seed):
+    """The same deformed scene with the reference interval on the other side of the reference polygon: the
+    winding numbers name the other end, and ``J`` follows (2.5 to 24 times smaller here)."""
+    scene, flipped = cylinder_scene(seed), cylinder_scene(seed, flip=True)
+    assert [c.deformed.tolist() for c in scene.components] == [c.deformed.tolist() for c in flipped.components]
+    exact, exact_flipped = cylinder_reference(scene), cylinder_reference(flipped)
+    assert exact > 2.0 * exact_flipped
+    for sc, ex in ((scene, exact), (flipped, exact_flipped)):
+        res = direct.penalty(sc, tol=1e-5)
+        assert abs(res.value - ex) <= min(1e-5 * ex, res.error_estimate)
+
+
+def test_the_cylinder_reference_refuses_what_it_cannot_bound():
+    """Two crossings, a polygon deformed into the other orientation, a bent interval: ``ValueError``."""
+    scene = cylinder_scene(0)
+    interval, polygon = sorted(scene.components, key=lambda c: c.closed)
+    through = direct.Component(interval.reference, polygon.deformed.mean(axis=0) + np.array([[-9.0, 0.1], [9.0, 0.2]])
+                               * np.hypot(*np.ptp(polygon.deformed, axis=0)) / 4.0, name="through")
+    with pytest.raises(ValueError, match="crossings, not one"):
+        cylinder_reference(direct.Scene((polygon, through)))
+    turned = direct.Component(polygon.reference, polygon.deformed[::-1], closed=True, name="turned")
+    with pytest.raises(ValueError, match="other way"):
+        cylinder_reference(direct.Scene((turned, interval)))
+    mid = interval.deformed.mean(axis=0) + 0.1 * np.array([1.0, -1.0]) * np.hypot(*np.ptp(interval.deformed, axis=0))
+    bent = direct.Component(np.insert(interval.reference, 1, interval.reference.mean(axis=0), axis=0),
+                            np.insert(interval.deformed, 1, mid, axis=0), name="bent")
+    with pytest.raises(ValueError, match="bent"):
+        cylinder_reference(direct.Scene((polygon, bent)))
