@@ -261,9 +261,19 @@ def cylinder_reference(scene, k: int = 2, samples: int = 4000) -> float:
     the cylinder from one boundary circle to the other (which a curve to the
     wrong end would need): ``int dist(phi(s), polygon)^k ds`` over the
     interval, each of ``samples`` stretches bounded below by its midpoint's
-    distance less half its length (the distance is 1-Lipschitz).  The polygon
-    alone and the interval alone cross nothing and keep their turning
-    numbers: their pieces add nothing.
+    distance less half its length (the distance is 1-Lipschitz).  The value
+    is attained: the nearest point of a side lies on the branch of the
+    profile's valley in that side's own half-plane (``f`` is symmetric about
+    its cheapest direction and of period pi), so the way there keeps the sign
+    of ``x1`` and does not meet the other end's side first, though that end
+    may be nearer.  The polygon alone and the interval alone cross nothing
+    and keep their turning numbers: their pieces add nothing.  A review (stop
+    46) derived the condition from the proof of Proposition 11 on the
+    cylinder (a closed form supported away from the boundary and the crossing
+    is exact there, so the ends on each boundary circle count the flux
+    through it, ``w(e) - w_j``), and found this function within 6e-10
+    (relative) of ``direct`` at ``tol=1e-7`` on 109 random polygons of 3 to 8
+    vertices, convex or not, either orientation.
 
     Parameters
     ----------
