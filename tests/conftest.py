@@ -6,7 +6,8 @@ import sys
 
 import numpy as np
 import pytest
-from references import crossing_reference
+import shapely
+from references import crossing_reference, cylinder_reference
 
 import direct
 
@@ -262,3 +263,45 @@ def cylinder_scene(seed: int, isometric: bool = False, flip: bool = False) -> di
     scene = direct.Scene(comps, name=f"cylinder {seed}")
     return rigid(scene, rng.uniform(0.0, 2.0 * np.pi), rng.normal(scale=10.0, size=2),
                  1.0 if isometric else 10.0 ** rng.uniform(-1.0, 1.0))
+
+
+def polygon_cylinder_scene(seed: int, isometric: bool = False, k: int = 2) -> direct.Scene:
+    """An interval that crosses a random polygon once, drawn until ``cylinder_reference`` (with ``k``) applies.
+
+    The polygon is star-shaped about the origin (3 to 8 vertices at radii
+    0.6 to 2, either orientation, convex or not), the deformed interval a
+    segment between two points drawn in ``[-2.5, 2.5]^2``; the reference
+    interval lies inside the polygon (near its representative point) or far
+    outside it, at random.  The polygon is not deformed; the interval's
+    reference has its deformed length when ``isometric`` (for ``g``), else
+    0.05 inside or 3 outside.  Draws again from the same generator where the
+    reference refuses (about 1 draw in 25 is kept).
+    """
+    rng = np.random.default_rng(11000 + seed)
+    while True:
+        m = int(rng.integers(3, 9))
+        angles = np.sort(rng.uniform(0.0, 2.0 * np.pi, m))
+        radii = rng.uniform(0.6, 2.0, m)
+        polygon = np.column_stack([radii * np.cos(angles), radii * np.sin(angles)])
+        if rng.random() < 0.5:
+            polygon = polygon[::-1]
+        shape = shapely.Polygon(polygon)
+        A, B = rng.uniform(-2.5, 2.5, 2), rng.uniform(-2.5, 2.5, 2)
+        L = float(np.hypot(*(B - A)))
+        if not shape.is_valid or not L > 0:
+            continue
+        if rng.random() < 0.5:  # the reference interval inside
+            c = np.array(shape.representative_point().coords[0])
+            reference = np.array([c, c + [L if isometric else 0.05, 0.0]])
+            if not shape.contains(shapely.linestrings(reference)):
+                continue
+        else:
+            reference = np.array([[-20.0, 7.0], [-20.0 + (L if isometric else 3.0), 7.0]])
+        scene = direct.Scene((direct.Component(polygon, polygon, closed=True, name="polygon"),
+                              direct.Component(reference, np.array([A, B]), name="interval")),
+                             name=f"polygon cylinder {seed}")
+        try:
+            cylinder_reference(scene, k=k)
+        except ValueError:
+            continue
+        return scene

@@ -2,7 +2,14 @@
 
 import numpy as np
 import pytest
-from conftest import crease_by_a_sliding_end, cylinder_scene, rigid, slowed_cross, straight_crossings_scene
+from conftest import (
+    crease_by_a_sliding_end,
+    cylinder_scene,
+    polygon_cylinder_scene,
+    rigid,
+    slowed_cross,
+    straight_crossings_scene,
+)
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from references import crossing_reference, cylinder_reference, straight_crossings_reference
@@ -257,6 +264,18 @@ def test_an_interval_across_a_polygon_with_g(seed):
     scene = cylinder_scene(seed, isometric=True)
     exact = cylinder_reference(scene, k=4)
     res = direct.penalty(scene, "g", tol=1e-5)
+    err = abs(res.value - exact)
+    assert err <= 1e-5 * exact
+    assert err <= res.error_estimate
+
+
+@pytest.mark.parametrize("metric, k, seed", [("G", 2, 1), ("G", 2, 5), ("g", 4, 1), ("g", 4, 9)])
+def test_an_interval_across_a_random_polygon(metric, k, seed):
+    """A star-shaped polygon of 3 to 8 vertices, convex or not, either orientation, the reference interval inside
+    or far outside it: the reference's end (``cylinder_reference``) at ``tol=1e-5``."""
+    scene = polygon_cylinder_scene(seed, isometric=metric == "g", k=k)
+    exact = cylinder_reference(scene, k=k)
+    res = direct.penalty(scene, metric, tol=1e-5)
     err = abs(res.value - exact)
     assert err <= 1e-5 * exact
     assert err <= res.error_estimate

@@ -1,16 +1,18 @@
 """Several crossings of straight runs against an exact reference, at ``tol=1e-5`` and ``1e-7``.
 
-Run ``python validation/straight_crossings.py`` (about two minutes).  The scenes of
+Run ``python validation/straight_crossings.py`` (about four minutes).  The scenes of
 ``tests/conftest.py``'s ``straight_crossings_scene``: combs (a spine crossed by 2 to 4 sticks), hooks (a
 spine crossed twice, with opposite signs, in one piece of ``M x M``: the program could pair the two points)
 and loops (one polyline crossing itself), with extra collinear vertices, uneven references, turned, moved
 and scaled; 20 seeds each.  Also ``cylinder_scene``: an interval crossing a square once, whose curve must
 reach the end whose winding number changed (``cylinder_reference``: a closed component, where the
 topological condition decides), with its reference interval on either side of the square (``cylinder``,
-the farther end; ``cylinder, flipped``, the nearer).  Their ``J`` comes from ``tests/references.py``'s
-``straight_crossings_reference`` (not computed with ``direct``): each crossing's rectangle of straight runs,
-its nearest side a component end, nearer than any bend, the rectangles disjoint; the distance to each side
-from the eikonal profile of ``crossing_reference``.  Metrics: ``G`` (``q = 2``, and ``q = 1`` and ``3``
+the farther end; ``cylinder, flipped``, the nearer), and ``polygon_cylinder_scene``: an interval across a
+random star-shaped polygon, convex or not, either orientation (``cylinder, random polygon``).  Their ``J``
+comes from ``tests/references.py`` (not computed with ``direct``): ``straight_crossings_reference``, each
+crossing's rectangle of straight runs, its nearest side a component end, nearer than any bend, the
+rectangles disjoint, and ``cylinder_reference``; the distance to each side from the eikonal profile of
+``crossing_reference``.  Metrics: ``G`` (``q = 2``, and ``q = 1`` and ``3``
 on the first five seeds) and ``g`` with ``p = 2`` on isometric deformations (``k = 4``); every case at
 ``tol=1e-5``, the ``G`` cases of the first five seeds also at ``1e-7``.  A row is ``SILENT`` when the error
 exceeds the ``error_estimate`` without a ``ToleranceWarning``, ``over tol`` when it exceeds ``tol``.
@@ -24,7 +26,7 @@ import sys
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, "..", "tests"))
-from conftest import cylinder_scene, straight_crossings_scene  # noqa: E402
+from conftest import cylinder_scene, polygon_cylinder_scene, straight_crossings_scene  # noqa: E402
 from references import cylinder_reference, straight_crossings_reference  # noqa: E402
 
 sys.path.insert(0, HERE)
@@ -32,11 +34,12 @@ from default_tol import _solve as solve_recording_warnings  # noqa: E402
 from default_tol import status  # noqa: E402
 from study import write_csv  # noqa: E402
 
-#: each family's scene builder (seed, isometric) and reference (scene, k)
-FAMILIES = {kind: (lambda seed, iso, kind=kind: straight_crossings_scene(seed, kind, isometric=iso),
+#: each family's scene builder (seed, isometric, k) and reference (scene, k)
+FAMILIES = {kind: (lambda seed, iso, k, kind=kind: straight_crossings_scene(seed, kind, isometric=iso),
                    straight_crossings_reference) for kind in ("comb", "hook", "loop")}
-FAMILIES["cylinder"] = (lambda seed, iso: cylinder_scene(seed, iso), cylinder_reference)
-FAMILIES["cylinder, flipped"] = (lambda seed, iso: cylinder_scene(seed, iso, flip=True), cylinder_reference)
+FAMILIES["cylinder"] = (lambda seed, iso, k: cylinder_scene(seed, iso), cylinder_reference)
+FAMILIES["cylinder, flipped"] = (lambda seed, iso, k: cylinder_scene(seed, iso, flip=True), cylinder_reference)
+FAMILIES["cylinder, random polygon"] = (polygon_cylinder_scene, cylinder_reference)
 KINDS = tuple(FAMILIES)
 SEEDS = range(20)
 #: (metric, power, k of the reference, isometric deformations, tolerances, seeds)
@@ -52,7 +55,7 @@ def main() -> list[dict]:
         for metric, power, k, isometric, tols, seeds in SETTINGS:
             for seed in seeds:
                 build, reference = FAMILIES[kind]
-                scene = build(seed, isometric)
+                scene = build(seed, isometric, k)
                 exact = reference(scene, k=k)
                 for tol in tols if seed < 5 else tols[:1]:
                     res, warned, seconds = solve_recording_warnings(scene, tol, metric=metric, power=power)
