@@ -198,6 +198,19 @@ def test_a_crease_by_a_sliding_end_on_a_finer_grid(angle):
     assert abs(res.value - exact) <= 1e-3 * exact
 
 
+@pytest.mark.filterwarnings("ignore::direct.ToleranceWarning")  # the spread of the two starts exceeds 1e-5
+@pytest.mark.parametrize("angle", [0.7, 1.6])
+def test_a_crease_by_a_sliding_end_where_the_default_misses_it_is_covered_at_tol_1e5(angle):
+    """At 160 cells and these angles the default ``tol`` settles in another local geodesic ending in the same
+    strip (8.6e-4 and 4.3e-4 off, estimates 1.4e-4 and 1.5e-4: README, *Known limitations*); at ``tol=1e-5``,
+    the setting an oracle is judged at, the second pass finds the geodesic, and its estimate carries the two
+    starts' spread (2.9e-4 and 1.9e-4 relative, with a warning; ``validation/crease_motions.py``)."""
+    scene, exact = crease_by_a_sliding_end()
+    res = direct.penalty(rigid(scene, angle, (-0.3, 0.2)), resolution=160, tol=1e-5)
+    assert abs(res.value - exact) <= res.error_estimate
+    assert abs(res.value - exact) <= 1e-5 * exact
+
+
 def test_the_reference_of_straight_runs_is_the_crossing_reference_on_one_crossing():
     """:func:`straight_crossings_reference` on ``cross`` (four true ends), moved and with a collinear vertex."""
     for alpha, arms in [(np.pi / 3, (1.0, 1.0, 1.0, 1.0)), (0.7, (0.3, 0.9, 0.5, 1.2))]:

@@ -58,7 +58,9 @@ def main() -> list[dict]:
         over = [r for r in sel if r["over"]]
         worst = max(sel, key=lambda r: abs(r["relative_error"]))
         print(f"{setting}: {len(over)} of {len(sel)} runs off by more than their estimate "
-              f"({sum(r['warned'] for r in over)} of them warned); largest error {abs(worst['relative_error']):.1e} "
+              f"({sum(r['warned'] for r in over)} of them warned); {sum(r['warned'] for r in sel)} warned in all, "
+              f"largest estimate {max(r['relative_estimate'] for r in sel):.1e}; "
+              f"largest error {abs(worst['relative_error']):.1e} "
               f"relative (estimate {worst['relative_estimate']:.1e}, {worst['resolution']} cells); "
               f"{sum(r['seconds'] for r in sel):.1f} s in all")
         for r in over:
