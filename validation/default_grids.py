@@ -1,0 +1,68 @@
+"""The default ``tol`` on other grids and in other positions: do the estimates still cover the errors?
+
+Run ``python validation/default_grids.py`` (about five minutes).  The 175 random interval scenes of
+``default_tol.py`` (seeds 100 to 299), each turned and shifted (``J`` does not change under rigid motions) and
+solved at the default ``tol`` on grids of 96, 160 and 192 cells (one angle each), against the ``tol=1e-6``
+references that ``default_tol.py`` wrote to ``default_tol.csv`` (computed by ``direct`` on the default grid
+of the scene as given: a check of consistency across grids and positions, not against an independent value;
+``straight_crossings.py`` and ``crease_motions.py`` do that).  A row is ``over`` when the error exceeds the
+sum of its ``error_estimate`` and the reference's, ``warned`` when a ``ToleranceWarning`` said so.  Writes
+``default_grids.csv`` beside this file and prints a count per grid.
+"""
+
+from __future__ import annotations
+
+import csv
+import os
+import sys
+import time
+import warnings
+
+import direct
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, os.path.join(HERE, "..", "tests"))
+from conftest import rigid, study_scenes  # noqa: E402
+from study import write_csv  # noqa: E402
+
+#: (resolution, angle) of the runs of each scene, and the shift
+CASES = ((96, 0.4), (160, 1.3), (192, 2.2))
+SHIFT = (0.3, -0.1)
+
+
+def main() -> list[dict]:
+    with open(os.path.join(HERE, "default_tol.csv")) as fh:
+        refs = {}
+        for r in csv.DictReader(fh):
+            value = float(r["reference"])
+            refs[int(r["seed"])] = (value, float(r["reference_relative_estimate"]) * value)
+    rows = []
+    for seed, scene in study_scenes(range(100, 300)):
+        if seed not in refs:  # J = 0: no crossing that costs anything
+            continue
+        exact, exact_estimate = refs[seed]
+        for resolution, angle in CASES:
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always", direct.ToleranceWarning)
+                t0 = time.perf_counter()
+                res = direct.penalty(rigid(scene, angle, SHIFT), resolution=resolution)
+                seconds = time.perf_counter() - t0
+            warned = any(issubclass(w.category, direct.ToleranceWarning) for w in caught)
+            error = res.value - exact
+            rows.append(dict(seed=seed, resolution=resolution, angle=angle, value=res.value, reference=exact,
+                             relative_error=error / exact, relative_estimate=res.error_estimate / exact,
+                             reference_relative_estimate=exact_estimate / exact,
+                             over=abs(error) > res.error_estimate + exact_estimate, warned=warned, seconds=seconds))
+    write_csv(rows, os.path.join(HERE, "default_grids.csv"))
+    for resolution, _ in CASES:
+        sel = [r for r in rows if r["resolution"] == resolution]
+        print(f"{resolution} cells: {len(sel)} runs, {sum(r['over'] for r in sel)} off by more than both estimates "
+              f"({sum(r['over'] and not r['warned'] for r in sel)} without a warning), "
+              f"{sum(r['warned'] for r in sel)} warned; largest error "
+              f"{max(abs(r['relative_error']) for r in sel):.1e} relative, "
+              f"{sum(abs(r['relative_error']) > 1e-3 for r in sel)} beyond tol")
+    return rows
+
+
+if __name__ == "__main__":
+    main()
