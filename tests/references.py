@@ -106,25 +106,63 @@ def _side_distance(f, k: int, point, direction, lo: float, hi: float, samples: i
     return best
 
 
-def _straight_run(X: np.ndarray, seg: int, t: float):
-    """Around the point at fraction ``t`` of segment ``seg`` of the open polyline ``X``: the unit direction, and
+def _straight_run(X: np.ndarray, seg: int, t: float, closed: bool = False):
+    """Around the point at fraction ``t`` of segment ``seg`` of the polyline ``X``: the unit direction, and
     the arclength back and forward to the ends of the straight run through it, each with ``True`` when that
-    end is an end of the polyline (``False``: a bend)."""
-    V = np.diff(X, axis=0)
+    end is an end of the polyline (``False``: a bend; a closed polyline has bends only), and the point's
+    arclength from the first vertex."""
+    V = (np.roll(X, -1, axis=0) - X) if closed else np.diff(X, axis=0)
     L = np.hypot(V[:, 0], V[:, 1])
     u = V[seg] / L[seg]
+    n = len(V)
 
     def straight(i):
-        w = V[i] / L[i]
+        if not closed and not 0 <= i < n:
+            return False
+        w = V[i % n] / L[i % n]
         return abs(w[0] * u[1] - w[1] * u[0]) < 1e-12 and w @ u > 0
 
     back, i = t * L[seg], seg - 1
-    while i >= 0 and straight(i):
-        back, i = back + L[i], i - 1
+    while straight(i):
+        back, i = back + L[i % n], i - 1
     fwd, j = (1.0 - t) * L[seg], seg + 1
-    while j < len(V) and straight(j):
-        fwd, j = fwd + L[j], j + 1
-    return u, (back, i < 0), (fwd, j >= len(V)), np.concatenate([[0.0], np.cumsum(L)])[seg] + t * L[seg]
+    while straight(j):
+        fwd, j = fwd + L[j % n], j + 1
+    return (u, (back, not closed and i < 0), (fwd, not closed and j >= n),
+            np.concatenate([[0.0], np.cumsum(L)])[seg] + t * L[seg])
+
+
+def _crossing(p0, p1, q0, q1):
+    """``(t, s)`` where segment ``p0 p1`` crosses segment ``q0 q1`` (fractions of each), or None.
+
+    Raises ``ValueError`` for parallel segments that touch and for a crossing
+    at or within 1e-9 (of the segments) of a vertex, where rounding could count
+    it twice, or not at all.
+    """
+    u, v, w = p1 - p0, q1 - q0, q0 - p0
+    lu, lv = np.hypot(*u), np.hypot(*v)
+    den = u[0] * v[1] - u[1] * v[0]
+    if abs(den) <= 1e-12 * lu * lv:  # parallel: apart (collinear pieces of one run), or no reference
+        if shapely.distance(shapely.linestrings([p0, p1]), shapely.linestrings([q0, q1])) <= 1e-9 * (lu + lv):
+            raise ValueError("parallel segments that touch")
+        return None
+    t = (w[0] * v[1] - w[1] * v[0]) / den
+    s = (w[0] * u[1] - w[1] * u[0]) / den
+    if not (-1e-9 <= t <= 1.0 + 1e-9 and -1e-9 <= s <= 1.0 + 1e-9):
+        return None
+    if min(t, 1.0 - t, s, 1.0 - s) <= 1e-9:
+        raise ValueError("a crossing at a vertex")
+    return t, s
+
+
+def _rectangle_distances(alpha: float, k: int, a: float, b: float, c: float, d: float) -> tuple:
+    """The distances from a crossing at angle ``alpha`` to the sides ``x1 = -a, b`` and ``x2 = -c, d`` of its
+    rectangle of straight runs, in that order."""
+    f = _profile(alpha, k)
+    return (_side_distance(f, k, np.array([-a, 0.0]), np.array([0.0, 1.0]), -c, d),
+            _side_distance(f, k, np.array([b, 0.0]), np.array([0.0, 1.0]), -c, d),
+            _side_distance(f, k, np.array([0.0, -c]), np.array([1.0, 0.0]), -a, b),
+            _side_distance(f, k, np.array([0.0, d]), np.array([1.0, 0.0]), -a, b))
 
 
 def straight_crossings_reference(scene, k: int = 2) -> float:
@@ -175,28 +213,14 @@ def straight_crossings_reference(scene, k: int = 2) -> float:
             P, Q = np.asarray(comps[ia].deformed, float), np.asarray(comps[ib].deformed, float)
             for i in range(len(P) - 1):
                 for j in range(i + 2 if ia == ib else 0, len(Q) - 1):
-                    u, v, w = P[i + 1] - P[i], Q[j + 1] - Q[j], Q[j] - P[i]
-                    lu, lv = np.hypot(*u), np.hypot(*v)
-                    den = u[0] * v[1] - u[1] * v[0]
-                    if abs(den) <= 1e-12 * lu * lv:  # parallel: apart (collinear pieces of one run), or no reference
-                        if shapely.distance(shapely.linestrings([P[i], P[i + 1]]),
-                                            shapely.linestrings([Q[j], Q[j + 1]])) <= 1e-9 * (lu + lv):
-                            raise ValueError("parallel segments that touch")
+                    hit = _crossing(P[i], P[i + 1], Q[j], Q[j + 1])
+                    if hit is None:
                         continue
-                    t = (w[0] * v[1] - w[1] * v[0]) / den
-                    s = (w[0] * u[1] - w[1] * u[0]) / den
-                    if not (-1e-9 <= t <= 1.0 + 1e-9 and -1e-9 <= s <= 1.0 + 1e-9):
-                        continue
-                    if min(t, 1.0 - t, s, 1.0 - s) <= 1e-9:  # rounding could count it twice, or not at all
-                        raise ValueError("a crossing at a vertex")
+                    t, s = hit
                     ua, (a, end_a), (b, end_b), xa = _straight_run(P, i, t)
                     ub, (c, end_c), (d, end_d), xb = _straight_run(Q, j, s)
                     alpha = float(np.arccos(np.clip(ua @ ub, -1.0, 1.0)))
-                    f = _profile(alpha, k)
-                    sides = [(_side_distance(f, k, np.array([-a, 0.0]), np.array([0.0, 1.0]), -c, d), end_a),
-                             (_side_distance(f, k, np.array([b, 0.0]), np.array([0.0, 1.0]), -c, d), end_b),
-                             (_side_distance(f, k, np.array([0.0, -c]), np.array([1.0, 0.0]), -a, b), end_c),
-                             (_side_distance(f, k, np.array([0.0, d]), np.array([1.0, 0.0]), -a, b), end_d)]
+                    sides = list(zip(_rectangle_distances(alpha, k, a, b, c, d), (end_a, end_b, end_c, end_d)))
                     true = min((dist for dist, end in sides if end), default=np.inf)
                     bent = min((dist for dist, end in sides if not end), default=np.inf)
                     if not true < np.inf or not bent > true * (1.0 + 1e-9):
@@ -209,34 +233,6 @@ def straight_crossings_reference(scene, k: int = 2) -> float:
                     rects.setdefault((ia, ib), []).append(rect)
                     total += 2.0 * true
     return total
-
-
-def _winding_number(polygon: np.ndarray, point) -> int:
-    """Winding number of the closed polyline ``polygon`` (each vertex once) around ``point`` (not on it)."""
-    d = np.asarray(polygon, float) - np.asarray(point, float)
-    a = np.arctan2(d[:, 1], d[:, 0])
-    turn = np.diff(np.concatenate([a, a[:1]]))
-    return int(round(float(np.sum((turn + np.pi) % (2 * np.pi) - np.pi)) / (2 * np.pi)))
-
-
-def _closed_run(X: np.ndarray, seg: int, t: float):
-    """:func:`_straight_run` on a closed polyline: the arclength back and forward to the bends of the straight
-    run through the point at fraction ``t`` of segment ``seg`` (a polygon has no ends)."""
-    V = np.roll(X, -1, axis=0) - X
-    L = np.hypot(V[:, 0], V[:, 1])
-    u = V[seg] / L[seg]
-
-    def straight(i):
-        w = V[i % len(V)] / L[i % len(V)]
-        return abs(w[0] * u[1] - w[1] * u[0]) < 1e-12 and w @ u > 0
-
-    back, i = t * L[seg], seg - 1
-    while straight(i):
-        back, i = back + L[i % len(V)], i - 1
-    fwd, j = (1.0 - t) * L[seg], seg + 1
-    while straight(j):
-        fwd, j = fwd + L[j % len(V)], j + 1
-    return u, back, fwd
 
 
 def cylinder_reference(scene, k: int = 2, samples: int = 4000) -> float:
@@ -305,56 +301,36 @@ def cylinder_reference(scene, k: int = 2, samples: int = 4000) -> float:
     if len(opens) != 1 or len(closed) != 1:
         raise ValueError("one interval and one polygon")
     I_ref, I_def = np.asarray(opens[0].reference, float), np.asarray(opens[0].deformed, float)
-    C_ref, C_def = np.asarray(closed[0].reference, float), np.asarray(closed[0].deformed, float)
-    if not (shapely.Polygon(C_ref).is_valid and shapely.Polygon(C_def).is_valid):
+    C_ref, C_def = shapely.Polygon(closed[0].reference), shapely.Polygon(closed[0].deformed)
+    if not (C_ref.is_valid and C_def.is_valid):
         raise ValueError("a polygon that is not simple")
-    if shapely.LinearRing(C_ref).is_ccw != shapely.LinearRing(C_def).is_ccw:
+    if C_ref.exterior.is_ccw != C_def.exterior.is_ccw:
         raise ValueError("the polygon turns the other way once deformed (its turning number changed)")
-    if shapely.intersects(shapely.linestrings(I_ref), shapely.LinearRing(C_ref)):
+    if shapely.intersects(shapely.linestrings(I_ref), C_ref.exterior):
         raise ValueError("the reference interval meets its polygon")
-    u0 = I_def[-1] - I_def[0]
-    length = float(np.hypot(*u0))
-    V = np.diff(I_def, axis=0)
-    if np.any(np.abs(V[:, 0] * u0[1] - V[:, 1] * u0[0]) > 1e-12 * length * np.hypot(V[:, 0], V[:, 1])) or np.any(
-            V @ u0 <= 0):
-        raise ValueError("a bent interval")
-    u = u0 / length
-    P, Q = I_def[0], I_def[-1]
-    crossings = []
-    for j in range(len(C_def)):
-        A, B = C_def[j], C_def[(j + 1) % len(C_def)]
-        v, w = B - A, A - P
-        den = (Q - P)[0] * v[1] - (Q - P)[1] * v[0]
-        if abs(den) <= 1e-12 * length * np.hypot(*v):
-            if shapely.distance(shapely.linestrings([P, Q]), shapely.linestrings([A, B])) <= 1e-9 * length:
-                raise ValueError("the interval runs along a side of the polygon")
-            continue
-        t = (w[0] * v[1] - w[1] * v[0]) / den
-        s = (w[0] * (Q - P)[1] - w[1] * (Q - P)[0]) / den
-        if -1e-9 <= t <= 1.0 + 1e-9 and -1e-9 <= s <= 1.0 + 1e-9:
-            if min(s, 1.0 - s) <= 1e-9 or any(np.hypot(*(P + t * (Q - P) - x)) <= 1e-9 * length for x in I_def):
-                raise ValueError("a crossing at a vertex")
-            crossings.append((j, t, s))
+    ring = np.asarray(closed[0].deformed, float)
+    crossings = [(i, j, *hit) for i in range(len(I_def) - 1) for j in range(len(ring))
+                 if (hit := _crossing(I_def[i], I_def[i + 1], ring[j], ring[(j + 1) % len(ring)])) is not None]
     if len(crossings) != 1:
         raise ValueError(f"{len(crossings)} crossings, not one")
-    j, t, s = crossings[0]
-    a, b = t * length, (1.0 - t) * length
-    ub, c, d = _closed_run(C_def, j, s)
-    alpha = float(np.arccos(np.clip(u @ ub, -1.0, 1.0)))
-    f = _profile(alpha, k)
-    to_start = _side_distance(f, k, np.array([-a, 0.0]), np.array([0.0, 1.0]), -c, d)
-    to_end = _side_distance(f, k, np.array([b, 0.0]), np.array([0.0, 1.0]), -c, d)
-    bent = min(_side_distance(f, k, np.array([0.0, -c]), np.array([1.0, 0.0]), -a, b),
-               _side_distance(f, k, np.array([0.0, d]), np.array([1.0, 0.0]), -a, b))
-    w_ref = _winding_number(C_ref, I_ref[0])
-    changed = [_winding_number(C_def, e) != w_ref for e in (P, Q)]
+    i, j, t, s = crossings[0]
+    u, (a, start_is_end), (b, end_is_end), _ = _straight_run(I_def, i, t)
+    if not (start_is_end and end_is_end):
+        raise ValueError("a bent interval")
+    ub, (c, _), (d, _), _ = _straight_run(ring, j, s, closed=True)
+    to_start, to_end, *bent_sides = _rectangle_distances(float(np.arccos(np.clip(u @ ub, -1.0, 1.0))), k, a, b, c, d)
+    # a simple polygon winds once round the points inside it (either way, the same in both embeddings) and not
+    # at all round the others: the winding number round an end changed where its inside-ness did
+    inside_ref = C_ref.contains(shapely.Point(I_ref[0]))
+    changed = [C_def.contains(shapely.Point(e)) != inside_ref for e in (I_def[0], I_def[-1])]
     if changed.count(True) != 1:
         raise ValueError("no end whose winding number changed alone")
     allowed, other = (to_start, to_end) if changed[0] else (to_end, to_start)
+    length = a + b
     h = length / samples
-    mids = P + np.outer((np.arange(samples) + 0.5) * h, u)
-    gaps = shapely.distance(shapely.points(mids), shapely.LinearRing(C_def))
+    mids = I_def[0] + np.outer((np.arange(samples) + 0.5) * h, u)
+    gaps = shapely.distance(shapely.points(mids), C_def.exterior)
     across = float(np.sum(np.maximum(gaps - 0.5 * h, 0.0) ** k) * h)
-    if not (allowed * (1.0 + 1e-9) < bent and allowed < (other + across) * (1.0 - 1e-6)):
+    if not (allowed * (1.0 + 1e-9) < min(bent_sides) and allowed < (other + across) * (1.0 - 1e-6)):
         raise ValueError("the allowed end is not the nearest way out")
     return 2.0 * allowed
