@@ -17,8 +17,6 @@ from __future__ import annotations
 import csv
 import os
 import sys
-import time
-import warnings
 
 import direct
 
@@ -27,6 +25,7 @@ sys.path.insert(0, os.path.join(HERE, "..", "tests"))
 from conftest import rigid, study_scenes  # noqa: E402
 
 sys.path.insert(0, HERE)
+from default_tol import _solve as solve_recording_warnings  # noqa: E402
 from random_closed import random_closed  # noqa: E402
 from study import write_csv  # noqa: E402
 
@@ -57,12 +56,7 @@ def main() -> list[dict]:
     rows = []
     for family, name, scene, exact, exact_estimate in _scenes():
         for resolution, angle in CASES:
-            with warnings.catch_warnings(record=True) as caught:
-                warnings.simplefilter("always", direct.ToleranceWarning)
-                t0 = time.perf_counter()
-                res = direct.penalty(rigid(scene, angle, SHIFT), resolution=resolution)
-                seconds = time.perf_counter() - t0
-            warned = any(issubclass(w.category, direct.ToleranceWarning) for w in caught)
+            res, warned, seconds = solve_recording_warnings(rigid(scene, angle, SHIFT), 1e-3, resolution=resolution)
             error = res.value - exact
             rows.append(dict(family=family, scene=name, resolution=resolution, angle=angle, value=res.value,
                              reference=exact,
