@@ -71,6 +71,10 @@ def _add_method_options(p: argparse.ArgumentParser) -> None:
         "--no-refine", dest="refine", action="store_false", help="report the grid (Dijkstra) value without refinement"
     )
     p.add_argument(
+        "--workers", type=int, default=1, metavar="N",
+        help="processes that refine the curves (default 1; -1: one per CPU); the value is the same as with one",
+    )
+    p.add_argument(
         "--second-pass", choices=["auto", "on", "off"], default="auto",
         help="solve again from a second grid's routes and add the spread to the error estimate "
         "(auto: when tol <= 1e-4, when the resolution is below 128, always with euclid, and on every domain with a "
@@ -136,6 +140,7 @@ def _compute(args: argparse.Namespace):
         backend=args.backend,
         refine=args.refine,
         second_pass={"auto": None, "on": True, "off": False}[args.second_pass],
+        workers=args.workers,
     )
     return scene, result
 

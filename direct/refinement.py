@@ -51,6 +51,7 @@ from scipy.linalg.lapack import dgtsv
 from scipy.optimize import minimize
 from scipy.sparse.linalg import spsolve
 
+from . import parallel
 from .grid import Domain, deformed_speeds
 from .metric import Metric, _breaks, _vertex_params, segment_lengths
 
@@ -1996,6 +1997,25 @@ def _doubling_cap(max_segments: int, tol: float) -> int:
 _TIGHT_TOL = 1e-6
 
 
+def _route_work(domain: Domain, jobs: list[GeodesicJob]) -> np.ndarray:
+    """An estimate of each job's work, to balance the parts of a batch (:func:`direct.parallel.split`).
+
+    The vertices of a refined curve are mostly its refraction vertices, one
+    where it crosses a vertex line (hundreds on a finely sampled circle), and a
+    few dozen free ones: the lines the route crosses plus 32.
+    """
+    work = np.full(len(jobs), 32.0)
+    for k, job in enumerate(jobs):
+        R = np.asarray(job.route, dtype=float)
+        if len(R) < 2:
+            continue
+        for axis in range(2):
+            u = R[:, axis]
+            vp = _vertex_params(domain.comps[axis], float(u.min()), float(u.max()))
+            work[k] += len(_breaks(vp, u[:-1], u[1:])[0])
+    return work
+
+
 def refine_many(
     domain: Domain,
     metric: Metric,
@@ -2049,9 +2069,26 @@ def refine_many(
         ``c r / (1 - r)`` of the changes when the last one ``c`` is more
         than half the one before (ratio ``r``, capped at ``_MAX_RATIO``),
         plus what further rounds of the last level could still gain.
+
+    Notes
+    -----
+    Each curve is refined independently of the others in the batch (its own
+    damping, step, line search, rounds and levels), so within
+    :func:`direct.parallel.using` (``direct.penalty(..., workers=N)``) a
+    batch is cut into parts of about equal work (:func:`_route_work`), one
+    refined here and the others on worker processes, with the same result.
     """
-    scale = float(max(domain.lengths))
     jobs = list(jobs)
+    if parallel.current() > 1 and len(jobs) > 1:  # direct.penalty(..., workers=N): parts on other processes
+        parts = parallel.split(_route_work(domain, jobs), parallel.current())
+        results = parallel.run_parts(refine_many, [(domain, metric, [jobs[i] for i in part], tol, atol, start,
+                                                    max_segments, max_rounds) for part in parts])
+        out: list = [None] * len(jobs)
+        for part, refined in zip(parts, results):
+            for i, rp in zip(part, refined):
+                out[i] = rp
+        return out
+    scale = float(max(domain.lengths))
     # the coarse geodesic, unless the grid route itself is shorter: where the metric vanishes along whole lines the
     # grid route may run along them for free in a staircase that 16 segments cannot follow (fig13 at 192 cells:
     # the coarse geodesic 2 % longer than its route, the refinement from it 1.2 % too high)
