@@ -30,6 +30,7 @@ import contextlib
 import contextvars
 import multiprocessing
 import os
+import pickle
 import sys
 import warnings
 from concurrent.futures import ProcessPoolExecutor
@@ -107,40 +108,47 @@ def _in_worker(fn, args):
         return fn(*args)
 
 
-def run_parts(fn, parts: list[tuple]) -> list:
+def run_parts(fn, parts: list[tuple]) -> list | None:
     """``[fn(*args) for args in parts]``: the first part here, the others on worker processes, at once.
 
-    ``fn`` and the arguments must pickle.  The call here runs with one
-    process (``using(1)``), so ``fn`` does not split again.  An error that
-    ``fn`` raises in a worker is raised here.  Where worker processes cannot
-    be started or die (a daemonic process may not have children; a worker
-    killed), the parts left run here, with a ``RuntimeWarning``: the result
-    is the same.
+    The call here runs with one process (``using(1)``), so ``fn`` does not
+    split again.  An error that ``fn`` raises in a worker is raised here.
+    Where the arguments do not pickle (a metric built on a lambda), or worker
+    processes cannot be started or die (a daemonic process may not have
+    children; a worker killed), returns None, with a ``RuntimeWarning``:
+    the caller then does the whole work itself, as with one process.
     """
-    futures: list = []
-    if len(parts) > 1:
-        try:
-            pool = _pool(len(parts) - 1)
-            futures = [pool.submit(_in_worker, fn, args) for args in parts[1:]]
-        except (OSError, AssertionError, BrokenProcessPool) as exc:
-            _broken(len(parts) - 1, exc)
+    futures = _submit(fn, parts[1:]) if len(parts) > 1 else []
+    if len(parts) > 1 and not futures:
+        return None
     with using(1):
         out = [fn(*parts[0])]
-    for k, args in enumerate(parts[1:]):
-        if k < len(futures):
-            try:
-                out.append(futures[k].result())
-                continue
-            except BrokenProcessPool as exc:
-                _broken(len(parts) - 1, exc)
-                futures = []
-        with using(1):
-            out.append(fn(*args))
-    return out
+    try:
+        return out + [f.result() for f in futures]
+    except BrokenProcessPool as exc:
+        _broken(len(parts) - 1, exc)
+        return None
+
+
+def _submit(fn, rest: list[tuple]) -> list:
+    """Futures of ``fn(*args)`` for each of ``rest`` on the pool; none (with a warning) where they cannot go there."""
+    try:
+        pickle.dumps((fn, rest[0]))
+    except (pickle.PicklingError, AttributeError, TypeError) as exc:  # a metric built on a lambda, say
+        warnings.warn(f"direct: these arguments cannot be sent to worker processes ({type(exc).__name__}: {exc}); "
+                      "refining in this process instead (as with workers=1); define the metric's functions at "
+                      "module level to use workers", RuntimeWarning, stacklevel=4)
+        return []
+    try:
+        pool = _pool(len(rest))
+        return [pool.submit(_in_worker, fn, args) for args in rest]
+    except (OSError, AssertionError, BrokenProcessPool) as exc:
+        _broken(len(rest), exc)
+        return []
 
 
 def _broken(n: int, exc: BaseException) -> None:
     """Forget the pool of ``n`` workers and say that the parts run here instead."""
     _POOLS.pop(n, None)
     warnings.warn(f"direct: worker processes unavailable ({type(exc).__name__}: {exc}); refining in this process "
-                  "instead (the same result)", RuntimeWarning, stacklevel=3)
+                  "instead (as with workers=1)", RuntimeWarning, stacklevel=4)

@@ -2083,11 +2083,12 @@ def refine_many(
         parts = parallel.split(_route_work(domain, jobs), parallel.current())
         results = parallel.run_parts(refine_many, [(domain, metric, [jobs[i] for i in part], tol, atol, start,
                                                     max_segments, max_rounds) for part in parts])
-        out: list = [None] * len(jobs)
-        for part, refined in zip(parts, results):
-            for i, rp in zip(part, refined):
-                out[i] = rp
-        return out
+        if results is not None:  # else no worker could take a part (a warning said why): all of it here
+            out: list = [None] * len(jobs)
+            for part, refined in zip(parts, results):
+                for i, rp in zip(part, refined):
+                    out[i] = rp
+            return out
     scale = float(max(domain.lengths))
     # the coarse geodesic, unless the grid route itself is shorter: where the metric vanishes along whole lines the
     # grid route may run along them for free in a staircase that 16 segments cannot follow (fig13 at 192 cells:

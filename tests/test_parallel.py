@@ -104,15 +104,16 @@ def _square_or_die(x, parent):
     return x * x
 
 
-def test_parts_run_here_when_the_workers_die():
+def test_no_parts_come_back_when_the_workers_die():
+    """The caller then does the whole batch itself, as with one process (the next call starts new workers)."""
     import os
 
     with pytest.warns(RuntimeWarning, match="worker processes unavailable"):
-        out = parallel.run_parts(_square_or_die, [(2, os.getpid()), (3, os.getpid()), (4, os.getpid())])
-    assert out == [4, 9, 16]
+        assert parallel.run_parts(_square_or_die, [(2, os.getpid()), (3, os.getpid()), (4, os.getpid())]) is None
+    assert parallel.run_parts(pow, [(2, 3), (3, 2)]) == [8, 9]
 
 
-def test_parts_run_here_when_no_worker_can_start(monkeypatch):
+def test_the_batch_runs_here_when_no_worker_can_start(monkeypatch):
     def refuse(n):
         raise OSError("no processes here")
 
@@ -121,3 +122,14 @@ def test_parts_run_here_when_no_worker_can_start(monkeypatch):
     with pytest.warns(RuntimeWarning, match="no processes here"):
         two = direct.penalty(scene, workers=2)
     assert same(direct.penalty(scene), two)
+
+
+def test_a_metric_that_cannot_go_to_another_process_is_refined_here():
+    """A metric built on a lambda does not pickle: the parts run in this process, with a warning, the same result."""
+    from direct.metric import GFamily
+
+    metric = GFamily(lambda s: s**3, label="s^3")
+    scene = random_crossing_scene(3, n_comp=3, n_vert=6, min_crossings=4, max_crossings=10)
+    with pytest.warns(RuntimeWarning, match="cannot be sent to worker processes"):
+        two = direct.penalty(scene, metric, workers=2)
+    assert same(direct.penalty(scene, metric), two)
