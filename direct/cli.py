@@ -72,7 +72,8 @@ def _add_method_options(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--workers", type=int, default=1, metavar="N",
-        help="processes that refine the curves (default 1; -1: one per CPU); the value is the same as with one",
+        help="processes that refine the curves (default 1; -1: one per CPU); the same value as with one (bit for "
+        "bit with G, q = 2; within the estimates with the other metrics)",
     )
     p.add_argument(
         "--second-pass", choices=["auto", "on", "off"], default="auto",

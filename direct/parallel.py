@@ -16,12 +16,24 @@ again.  ``tests/test_parallel.py`` checks values, estimates and curves
 against one process; ``python validation/workers.py`` measures the gain.
 
 The parts are balanced by an estimate of each curve's work (:func:`split`).
-Worker processes are started once per number of workers and kept for the
-session (a :class:`concurrent.futures.ProcessPoolExecutor`): by ``fork`` on
-Linux, so nothing is imported again; elsewhere by ``spawn``, which imports
-the main module again in each worker, so a script that asks for workers
-needs the usual ``if __name__ == "__main__":`` guard.  Each worker keeps
-BLAS on one thread, as :func:`direct.penalty` does.
+The ``workers - 1`` worker processes are started at the first call and kept
+for the session (a :class:`concurrent.futures.ProcessPoolExecutor`; another
+``workers`` replaces them): by ``fork`` on Linux, so nothing is imported
+again; elsewhere by ``spawn``, which imports the main module again in each
+worker, so a script that asks for workers needs the usual ``if __name__ ==
+"__main__":`` guard.  Workers keep the code and settings of the moment they
+started (a module changed or reloaded afterwards, numpy's error settings,
+warning filters): :func:`shutdown` stops them, and the next call starts new
+ones.  Each worker keeps BLAS on one thread, as :func:`direct.penalty` does,
+and ignores Ctrl-C, which the calling process receives.  Only a main process
+starts workers: in a process that :mod:`multiprocessing` started (a pool's
+worker, a forked child), a call runs in that process.
+
+Where no worker can take a part (arguments that do not pickle, such as a
+metric built on a lambda; a process that multiprocessing started; workers
+that cannot start or die), the rest of that call runs in the calling
+process, as with one process, and :func:`direct.penalty` says why in one
+``RuntimeWarning``.
 """
 
 from __future__ import annotations
@@ -31,8 +43,8 @@ import contextvars
 import multiprocessing
 import os
 import pickle
+import signal
 import sys
-import warnings
 from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 
@@ -40,14 +52,36 @@ import numpy as np
 
 from .errors import DirectError
 
-__all__ = ["resolve_workers", "using", "current", "split", "run_parts"]
+__all__ = ["resolve_workers", "using", "current", "split", "run_parts", "shutdown"]
 
-_WORKERS: contextvars.ContextVar[int] = contextvars.ContextVar("direct_workers", default=1)
-_POOLS: dict[int, ProcessPoolExecutor] = {}
+
+class Setting:
+    """The processes a call may use: ``workers``, and ``failure``, why the rest of the call runs here (or None)."""
+
+    __slots__ = ("workers", "failure")
+
+    def __init__(self, workers: int):
+        self.workers = workers
+        self.failure: str | None = None
+
+
+_SETTING: contextvars.ContextVar[Setting | None] = contextvars.ContextVar("direct_workers", default=None)
+#: the worker processes of this session: [executor, its number of processes, the pid that started it]
+_POOL: list = [None, 0, 0]
 
 
 def resolve_workers(workers) -> int:
-    """The number of processes ``workers`` asks for: a whole number of at least 1, or -1 for every CPU.
+    """The number of processes ``workers`` asks for.
+
+    Parameters
+    ----------
+    workers : int
+        A whole number of processes, at least 1, or -1 for every CPU this
+        process may run on.
+
+    Returns
+    -------
+    int
 
     Raises
     ------
@@ -65,23 +99,48 @@ def resolve_workers(workers) -> int:
 
 @contextlib.contextmanager
 def using(workers: int):
-    """Context in which :func:`direct.refinement.refine_many` splits its batches over ``workers`` processes."""
-    token = _WORKERS.set(int(workers))
+    """Context in which :func:`direct.refinement.refine_many` splits its batches over ``workers`` processes.
+
+    Parameters
+    ----------
+    workers : int
+        Processes, the calling one included (1: no split).
+
+    Yields
+    ------
+    Setting
+        Its ``failure`` is set (a message) when no worker could take a part;
+        the rest of the context then runs in this process.
+    """
+    setting = Setting(int(workers))
+    token = _SETTING.set(setting)
     try:
-        yield
+        yield setting
     finally:
-        _WORKERS.reset(token)
+        _SETTING.reset(token)
 
 
 def current() -> int:
-    """The number of processes the batches of this context may use (1 outside :func:`using`)."""
-    return _WORKERS.get()
+    """The number of processes the batches of this context may use (1 outside :func:`using`, or after a failure)."""
+    setting = _SETTING.get()
+    return 1 if setting is None or setting.failure is not None else setting.workers
 
 
 def split(costs, parts: int) -> list[list[int]]:
-    """Indices of ``costs`` in ``parts`` groups of about equal total cost (longest first to the lightest group).
+    """Indices grouped into ``parts`` groups of about equal total cost (the costliest first, to the lightest group).
 
-    Each group keeps its indices in increasing order; empty groups are dropped.
+    Parameters
+    ----------
+    costs : sequence of float
+        The work of each item.
+    parts : int
+        The number of groups wanted.
+
+    Returns
+    -------
+    list of list of int
+        Every index once, each group in increasing order; no empty group
+        (fewer groups than ``parts`` when there are fewer items).
     """
     costs = np.asarray(costs, dtype=float)
     groups: list[list[int]] = [[] for _ in range(max(1, min(parts, len(costs))))]
@@ -93,12 +152,34 @@ def split(costs, parts: int) -> list[list[int]]:
     return [sorted(g) for g in groups if g]
 
 
-def _pool(n: int) -> ProcessPoolExecutor:
-    pool = _POOLS.get(n)
-    if pool is None:
-        method = "fork" if sys.platform.startswith("linux") else "spawn"
-        pool = _POOLS[n] = ProcessPoolExecutor(max_workers=n, mp_context=multiprocessing.get_context(method))
-    return pool
+def _start_method() -> str:
+    return "fork" if sys.platform.startswith("linux") else "spawn"
+
+
+def _pool(size: int) -> ProcessPoolExecutor:
+    """The session's ``size`` worker processes (started now if none, another number, or another process's)."""
+    executor, n, pid = _POOL
+    if executor is not None and (pid != os.getpid() or n != size):
+        if pid == os.getpid():
+            executor.shutdown(wait=False, cancel_futures=True)
+        executor = None  # a forked child's copy has no processes behind it: it is dropped, not shut down
+    if executor is None:
+        executor = ProcessPoolExecutor(max_workers=size, mp_context=multiprocessing.get_context(_start_method()),
+                                       initializer=signal.signal, initargs=(signal.SIGINT, signal.SIG_IGN))
+        _POOL[:] = [executor, size, os.getpid()]
+    return executor
+
+
+def shutdown() -> None:
+    """Stop the worker processes of this session (the next call with ``workers > 1`` starts new ones).
+
+    Workers keep the code and settings of the moment they started: after
+    changing a module, call this.
+    """
+    executor, _, pid = _POOL
+    _POOL[:] = [None, 0, 0]
+    if executor is not None and pid == os.getpid():
+        executor.shutdown(wait=True, cancel_futures=True)
 
 
 def _in_worker(fn, args):
@@ -111,12 +192,24 @@ def _in_worker(fn, args):
 def run_parts(fn, parts: list[tuple]) -> list | None:
     """``[fn(*args) for args in parts]``: the first part here, the others on worker processes, at once.
 
-    The call here runs with one process (``using(1)``), so ``fn`` does not
-    split again.  An error that ``fn`` raises in a worker is raised here.
-    Where the arguments do not pickle (a metric built on a lambda), or worker
-    processes cannot be started or die (a daemonic process may not have
-    children; a worker killed), returns None, with a ``RuntimeWarning``:
-    the caller then does the whole work itself, as with one process.
+    Parameters
+    ----------
+    fn : callable
+        A module-level function (it goes to the workers by name).
+    parts : list of tuple
+        The arguments of each call; at most :func:`current` of them.
+
+    Returns
+    -------
+    list or None
+        The results, in order.  None where no worker could take a part
+        (the arguments do not pickle, such as a metric built on a lambda;
+        worker processes cannot start, as in a daemonic process, or die):
+        the context's ``failure`` then says why, the rest of the context
+        runs in this process, and the caller does this whole work itself,
+        as with one process.  The call here runs with ``using(1)``, so
+        ``fn`` does not split again; an error that ``fn`` raises in a
+        worker is raised here.
     """
     futures = _submit(fn, parts[1:]) if len(parts) > 1 else []
     if len(parts) > 1 and not futures:
@@ -126,29 +219,37 @@ def run_parts(fn, parts: list[tuple]) -> list | None:
     try:
         return out + [f.result() for f in futures]
     except BrokenProcessPool as exc:
-        _broken(len(parts) - 1, exc)
+        _POOL[:] = [None, 0, 0]
+        _fail(f"the worker processes died ({exc})")
         return None
 
 
 def _submit(fn, rest: list[tuple]) -> list:
-    """Futures of ``fn(*args)`` for each of ``rest`` on the pool; none (with a warning) where they cannot go there."""
+    """Futures of ``fn(*args)`` for each of ``rest`` on the workers; none where they cannot go there (see _fail)."""
+    if multiprocessing.parent_process() is not None:
+        # a process that multiprocessing started (a daemonic pool's worker may have no children; a forked one's
+        # workers kept its exit waiting forever, in a review's script and a test): no workers of its own
+        _fail("worker processes start only from a main process, not from one that multiprocessing started")
+        return []
     try:
         pickle.dumps((fn, rest[0]))
-    except (pickle.PicklingError, AttributeError, TypeError) as exc:  # a metric built on a lambda, say
-        warnings.warn(f"direct: these arguments cannot be sent to worker processes ({type(exc).__name__}: {exc}); "
-                      "refining in this process instead (as with workers=1); define the metric's functions at "
-                      "module level to use workers", RuntimeWarning, stacklevel=4)
+    except (pickle.PicklingError, AttributeError, TypeError) as exc:
+        _fail(f"its arguments cannot be sent to worker processes ({type(exc).__name__}: {exc}); define the metric's "
+              "functions at module level to use workers")
         return []
     try:
-        pool = _pool(len(rest))
+        pool = _pool(max(current() - 1, len(rest)))
         return [pool.submit(_in_worker, fn, args) for args in rest]
     except (OSError, AssertionError, BrokenProcessPool) as exc:
-        _broken(len(rest), exc)
+        _POOL[:] = [None, 0, 0]
+        guard = ("; a script needs an 'if __name__ == \"__main__\":' guard where workers start by spawn"
+                 if _start_method() == "spawn" else "")
+        _fail(f"no worker process could start ({type(exc).__name__}: {exc}){guard}")
         return []
 
 
-def _broken(n: int, exc: BaseException) -> None:
-    """Forget the pool of ``n`` workers and say that the parts run here instead."""
-    _POOLS.pop(n, None)
-    warnings.warn(f"direct: worker processes unavailable ({type(exc).__name__}: {exc}); refining in this process "
-                  "instead (as with workers=1)", RuntimeWarning, stacklevel=4)
+def _fail(reason: str) -> None:
+    """Record why no worker takes this context's parts: the rest of it runs here (see :func:`using`)."""
+    setting = _SETTING.get()
+    if setting is not None and setting.failure is None:
+        setting.failure = reason

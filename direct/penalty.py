@@ -298,7 +298,9 @@ class Penalty:
         grid that overestimates ``J`` many times over, in a narrow valley);
         ``deformed_arclength``, the names of the components computed in
         their deformed arclength (``G``: an interval whose speeds span more
-        than 16, a closed component whose speeds differ at all).
+        than 16, a closed component whose speeds differ at all);
+        ``workers``, the processes asked for, where more than one, and
+        ``workers_failed``, why the workers were not used.
     seconds : float
         Wall time of the computation.
     """
@@ -1384,9 +1386,14 @@ def penalty(
         sums depend on the batch in the last bit, within the estimates
         (:mod:`direct.parallel`).  It pays on scenes whose refinement takes
         seconds (circles, many crossings).  Worker
-        processes start at the first call and stay for the session; off
+        processes start at the first call and stay for the session, with the
+        code of that moment (:func:`direct.parallel.shutdown` stops them); off
         Linux they start by ``spawn``, so a script needs an ``if __name__ ==
-        "__main__":`` guard.
+        "__main__":`` guard.  Where no worker can take a part (a metric
+        built on a lambda, no processes allowed), the rest of the call runs
+        in this process, with a ``RuntimeWarning``.  ``settings["workers"]``
+        records ``workers`` above 1 (and ``settings["workers_failed"]`` why
+        they were not used).
 
     Returns
     -------
@@ -1404,6 +1411,9 @@ def penalty(
         without ``refine``, instead of the above:
         the estimate cannot cover the choice of routes (a subclass of
         :class:`ToleranceWarning`).
+    RuntimeWarning
+        With ``workers`` above 1, once, where no worker could take a part:
+        the rest of the call ran in this process (the message says why).
 
     Raises
     ------
@@ -1429,8 +1439,15 @@ def penalty(
     True
     """
     n = parallel.resolve_workers(workers)
-    with _one_blas_thread(), parallel.using(n):
-        return _penalty(scene, metric, power, tol, resolution, neighbours, backend, refine, second_pass, coarsen)
+    with _one_blas_thread(), parallel.using(n) as processes:
+        result = _penalty(scene, metric, power, tol, resolution, neighbours, backend, refine, second_pass, coarsen)
+    if n > 1:
+        result.settings["workers"] = n
+        if processes.failure is not None:
+            result.settings["workers_failed"] = processes.failure
+            warnings.warn(f"direct: {processes.failure}; the rest of this call ran in one process, as with "
+                          "workers=1", RuntimeWarning, stacklevel=2)
+    return result
 
 
 _THREADPOOLS: ThreadpoolController | None = None

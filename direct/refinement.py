@@ -1469,10 +1469,12 @@ def _solve_tridiagonal(stack: _Stack, diag, off, rhs, active_u):
     try:
         dz[idx] = _symmetric_tridiagonal_solve(diag[idx], np.where(idx[1:] == idx[:-1] + 1, off[idx[:-1]], 0.0),
                                                rhs[idx])
-        return dz
+        if np.isfinite(dz[idx]).all():
+            return dz
     except (LinAlgError, ValueError):
         pass
-    # one block is singular: solve curve by curve (the blocks are independent)
+    # one block is singular, or not finite (which would spread through the whole elimination): solve curve by
+    # curve, the blocks being independent, so that no curve's step depends on the others in its batch
     for c in np.unique(stack.u_curve[idx]):
         k = idx[stack.u_curve[idx] == c]
         try:

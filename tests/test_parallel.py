@@ -105,12 +105,15 @@ def _square_or_die(x, parent):
 
 
 def test_no_parts_come_back_when_the_workers_die():
-    """The caller then does the whole batch itself, as with one process (the next call starts new workers)."""
+    """The caller then does the whole batch itself, as with one process, and so does the rest of the call."""
     import os
 
-    with pytest.warns(RuntimeWarning, match="worker processes unavailable"):
+    with parallel.using(3) as processes:
         assert parallel.run_parts(_square_or_die, [(2, os.getpid()), (3, os.getpid()), (4, os.getpid())]) is None
-    assert parallel.run_parts(pow, [(2, 3), (3, 2)]) == [8, 9]
+        assert "died" in processes.failure
+        assert parallel.current() == 1
+    with parallel.using(2):
+        assert parallel.run_parts(pow, [(2, 3), (3, 2)]) == [8, 9]  # new workers
 
 
 def test_the_batch_runs_here_when_no_worker_can_start(monkeypatch):
@@ -119,13 +122,16 @@ def test_the_batch_runs_here_when_no_worker_can_start(monkeypatch):
 
     monkeypatch.setattr(parallel, "_pool", refuse)
     scene = random_crossing_scene(3, n_comp=3, n_vert=6, min_crossings=4, max_crossings=10)
-    with pytest.warns(RuntimeWarning, match="no processes here"):
+    with pytest.warns(RuntimeWarning, match="no worker process could start.*no processes here") as record:
         two = direct.penalty(scene, workers=2)
+    assert len([w for w in record if w.category is RuntimeWarning]) == 1  # once a call, not once a batch
+    assert record[0].filename == __file__  # it points at the call
+    assert "no processes here" in two.settings["workers_failed"] and two.settings["workers"] == 2
     assert same(direct.penalty(scene), two)
 
 
 def test_a_metric_that_cannot_go_to_another_process_is_refined_here():
-    """A metric built on a lambda does not pickle: the parts run in this process, with a warning, the same result."""
+    """A metric built on a lambda does not pickle: the call runs in this process, with a warning, as with one."""
     from direct.metric import GFamily
 
     metric = GFamily(lambda s: s**3, label="s^3")
@@ -133,3 +139,44 @@ def test_a_metric_that_cannot_go_to_another_process_is_refined_here():
     with pytest.warns(RuntimeWarning, match="cannot be sent to worker processes"):
         two = direct.penalty(scene, metric, workers=2)
     assert same(direct.penalty(scene, metric), two)
+
+
+def _penalty_in_child(queue):
+    import warnings
+
+    with warnings.catch_warnings(record=True) as record:
+        warnings.simplefilter("always")
+        value = direct.penalty("cross60", workers=2).value
+    queue.put((value, [str(w.message) for w in record if w.category is RuntimeWarning]))
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="fork")
+def test_a_process_that_multiprocessing_forked_refines_by_itself():
+    """Such a process inherits its parent's pool object but none of its processes (a review found it waiting
+    forever on them), and its own workers kept its exit waiting: it refines alone, and says so."""
+    import multiprocessing
+
+    value = direct.penalty("cross60", workers=2).value
+    ctx = multiprocessing.get_context("fork")
+    queue = ctx.Queue()
+    child = ctx.Process(target=_penalty_in_child, args=(queue,))
+    child.start()
+    got, messages = queue.get(timeout=120)
+    child.join(timeout=30)
+    assert child.exitcode == 0
+    assert got == value
+    assert len(messages) == 1 and "not from one that multiprocessing started" in messages[0]
+
+
+def test_one_pool_of_workers_minus_one_processes():
+    """Batches with fewer parts than workers use the same pool; another number of workers replaces it."""
+    scene = random_crossing_scene(8, n_comp=3, n_vert=6, min_crossings=4, max_crossings=10)
+    direct.penalty(scene, workers=3)
+    pool, size = parallel._POOL[0], parallel._POOL[1]
+    assert size == 2
+    direct.penalty(scene, workers=3)
+    assert parallel._POOL[0] is pool
+    parallel.shutdown()
+    assert parallel._POOL[0] is None
+    direct.penalty(scene, workers=2)
+    assert parallel._POOL[1] == 1
