@@ -180,3 +180,21 @@ def test_one_pool_of_workers_minus_one_processes():
     assert parallel._POOL[0] is None
     direct.penalty(scene, workers=2)
     assert parallel._POOL[1] == 1
+
+
+def test_a_curve_whose_block_is_not_finite_leaves_the_others_alone():
+    """The stacked Newton solves every curve's tridiagonal block in one call, where a non-finite entry would turn
+    every curve's step into NaN (a review): the curves are then solved one by one, each as alone."""
+    from types import SimpleNamespace
+
+    from direct.refinement import _solve_tridiagonal
+
+    stack = SimpleNamespace(u_curve=np.array([0, 0, 1, 1]))
+    diag = np.array([np.nan, 2.0, 3.0, 3.0])  # one bad entry in the first curve's block
+    off = np.array([0.5, 0.0, 1.0])
+    rhs = np.array([1.0, 1.0, 1.0, 1.0])
+    dz = _solve_tridiagonal(stack, diag, off, rhs, np.ones(4, dtype=bool))
+    alone = _solve_tridiagonal(SimpleNamespace(u_curve=np.array([1, 1])), diag[2:], off[2:], rhs[2:],
+                               np.ones(2, dtype=bool))
+    assert np.array_equal(dz[2:], alone) and np.allclose(alone, [0.25, 0.25])
+    assert not np.isfinite(dz[:2]).any()  # the bad curve's own step says so (the Newton loop damps it)
