@@ -31,16 +31,11 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, "..", "tests"))
 sys.path.insert(0, HERE)
 from conftest import study_scenes  # noqa: E402
+from failures import double_cover as star  # noqa: E402  (odd n: a star polygon of n crossings)
 from random_closed import random_closed  # noqa: E402
 from study import write_csv  # noqa: E402
 
 import direct  # noqa: E402
-
-
-def star(n: int) -> direct.Scene:
-    """The double cover ``(cos 2t, sin 2t)`` of the circle sampled at ``n`` vertices: a star polygon of n crossings."""
-    return direct.scenes.circle_scene(lambda t: np.column_stack([np.cos(2 * t), np.sin(2 * t)]), n=n,
-                                      name=f"star {n}")
 
 
 def scenes() -> list[tuple[str, str, direct.Scene, float]]:
