@@ -40,13 +40,8 @@ from __future__ import annotations
 
 import contextlib
 import contextvars
-import multiprocessing
 import os
-import pickle
-import signal
 import sys
-from concurrent.futures import ProcessPoolExecutor
-from concurrent.futures.process import BrokenProcessPool
 
 import numpy as np
 
@@ -156,8 +151,12 @@ def _start_method() -> str:
     return "fork" if sys.platform.startswith("linux") else "spawn"
 
 
-def _pool(size: int) -> ProcessPoolExecutor:
+def _pool(size: int):
     """The session's ``size`` worker processes (started now if none, another number, or another process's)."""
+    import multiprocessing  # here, not at import: only a call with workers needs them (14 ms of direct's import)
+    import signal
+    from concurrent.futures import ProcessPoolExecutor
+
     executor, n, pid = _POOL
     if executor is not None and (pid != os.getpid() or n != size):
         if pid == os.getpid():
@@ -211,6 +210,8 @@ def run_parts(fn, parts: list[tuple]) -> list | None:
         ``fn`` does not split again; an error that ``fn`` raises in a
         worker is raised here.
     """
+    from concurrent.futures.process import BrokenProcessPool
+
     futures = _submit(fn, parts[1:]) if len(parts) > 1 else []
     if len(parts) > 1 and not futures:
         return None
@@ -226,6 +227,10 @@ def run_parts(fn, parts: list[tuple]) -> list | None:
 
 def _submit(fn, rest: list[tuple]) -> list:
     """Futures of ``fn(*args)`` for each of ``rest`` on the workers; none where they cannot go there (see _fail)."""
+    import multiprocessing
+    import pickle
+    from concurrent.futures.process import BrokenProcessPool
+
     if multiprocessing.parent_process() is not None:
         # a process that multiprocessing started (a daemonic pool's worker may have no children; a forked one's
         # workers kept its exit waiting forever, in a review's script and a test): no workers of its own

@@ -1384,8 +1384,9 @@ def penalty(
         the same as with one process, bit for bit for ``G`` with ``q = 2``
         and ``g`` with ``p = 1``; with the other metrics, whose quadrature
         sums depend on the batch in the last bit, within the estimates
-        (:mod:`direct.parallel`).  It pays on scenes whose refinement takes
-        seconds (circles, many crossings).  Worker
+        (:mod:`direct.parallel`).  It pays where the refinement takes
+        seconds: circles 1.6 times faster on two cores, random interval
+        scenes 1.09 times (``python validation/workers.py``).  Worker
         processes start at the first call and stay for the session, with the
         code of that moment (:func:`direct.parallel.shutdown` stops them); off
         Linux they start by ``spawn``, so a script needs an ``if __name__ ==

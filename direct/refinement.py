@@ -2078,7 +2078,9 @@ def refine_many(
     damping, step, line search, rounds and levels), so within
     :func:`direct.parallel.using` (``direct.penalty(..., workers=N)``) a
     batch is cut into parts of about equal work (:func:`_route_work`), one
-    refined here and the others on worker processes, with the same result.
+    refined here and the others on worker processes, with the same result
+    (bit for bit where the metric's integrals have a closed form; see
+    :mod:`direct.parallel`).
     """
     jobs = list(jobs)
     if parallel.current() > 1 and len(jobs) > 1:  # direct.penalty(..., workers=N): parts on other processes
