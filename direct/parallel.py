@@ -38,6 +38,7 @@ process, as with one process, and :func:`direct.penalty` says why in one
 
 from __future__ import annotations
 
+import atexit
 import contextlib
 import contextvars
 import os
@@ -166,6 +167,9 @@ def _pool(size: int):
         executor = ProcessPoolExecutor(max_workers=size, mp_context=multiprocessing.get_context(_start_method()),
                                        initializer=signal.signal, initargs=(signal.SIGINT, signal.SIG_IGN))
         _POOL[:] = [executor, size, os.getpid()]
+        # let go of it at exit, while the modules it calls back into are still there
+        atexit.unregister(shutdown)
+        atexit.register(shutdown)
     return executor
 
 
