@@ -295,6 +295,18 @@ def _cover_matrix(graph: GridGraph) -> sp.csr_matrix:
 def torus_distances(graph: GridGraph, backend: Backend = "scipy") -> tuple[dict, callable]:
     """Grid distances between crossing points of a torus, by homotopy class.
 
+    The grid graph is copied onto the 3 x 3 cover of the torus (section
+    3.3.4: a curve between two points is ranked in each class of its
+    period shift); one search from every crossing point of the centre copy.
+
+    Parameters
+    ----------
+    graph : GridGraph
+        The grid of a torus piece ``C_i x C_j`` (edge weights: exact metric
+        lengths, in the metric's length units).
+    backend : {"scipy", "networkx"}, default "scipy"
+        The shortest-path implementation (networkx as a cross-check).
+
     Returns
     -------
     T : dict

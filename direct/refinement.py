@@ -1696,6 +1696,24 @@ def coarse_geodesics(domain: Domain, metric: Metric, jobs: list[GeodesicJob], n:
     from where the geodesic meets it, and a curve refined from there 7.4 %
     too long with an estimate of 2.6e-4; after 10 rounds the end is in place).
 
+    Parameters
+    ----------
+    domain : Domain
+        The piece of ``M x M`` the curves lie in.
+    metric : Metric
+        The metric whose exact length is minimized.
+    jobs : list of GeodesicJob
+        The grid routes (parameters, reference arclength) and how their ends
+        are held (fixed crossing points, or free on a ground: eq. (9)).
+    n : int, default 16
+        Segments of each coarse curve.
+    rounds, more : int, default 3 and 9
+        Rounds of normal moves for every curve, then further rounds for the
+        curves still moving.
+    gain : float, default 1e-4
+        A curve goes on while its last round shortened it by more than this
+        fraction of its length.
+
     Returns
     -------
     list of (polyline, length)
@@ -1731,7 +1749,27 @@ def coarse_geodesics(domain: Domain, metric: Metric, jobs: list[GeodesicJob], n:
 def coarse_geodesic(
     domain: Domain, metric: Metric, route: np.ndarray, end_ground: int | None = None
 ) -> tuple[np.ndarray, float]:
-    """The coarse geodesic near one route (see :func:`coarse_geodesics`) and its exact length."""
+    """The coarse geodesic near one route (see :func:`coarse_geodesics`) and its exact length.
+
+    Parameters
+    ----------
+    domain : Domain
+        The piece of ``M x M`` the route lies in.
+    metric : Metric
+        The metric whose exact length is minimized.
+    route : (k, 2) array_like of float
+        The grid route in parameters (reference arclength), from a fixed
+        crossing point.
+    end_ground : int, optional
+        The ground its last point slides on (eq. (9)); ``None``: fixed.
+
+    Returns
+    -------
+    polyline : (k, 2) ndarray
+        The coarse geodesic in parameters (about 16 segments).
+    length : float
+        Its exact length (the metric's length units).
+    """
     return coarse_geodesics(domain, metric, [GeodesicJob(np.asarray(route, dtype=float), end_ground=end_ground)])[0]
 
 
