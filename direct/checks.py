@@ -65,6 +65,11 @@ def _as_vertices(a: Any, what: str, label: str) -> np.ndarray:
         arr = np.asarray(a, dtype=float)
     except (TypeError, ValueError) as err:
         raise SceneError(f"{label}: {what} vertices must be a list of [x, y] numbers ({err})") from err
+    except OverflowError as err:  # an integer beyond the floats (a JSON file's 10**400): no finite coordinate
+        k = next((k for k, row in enumerate(a) if any(_overflows(x) for x in row)), None)
+        which = f"vertex {k}" if k is not None else "vertices"
+        raise SceneError(f"{label}: {what} {which} holds an integer too large for a floating-point number "
+                         f"({err}); coordinates must be finite: rescale the scene") from err
     if arr.ndim != 2 or arr.shape[1] != 2:
         raise SceneError(f"{label}: {what} vertices must have shape (n, 2), got shape {arr.shape}")
     bad = np.flatnonzero(~np.isfinite(arr).all(axis=1))
@@ -74,6 +79,15 @@ def _as_vertices(a: Any, what: str, label: str) -> np.ndarray:
             f"{label}: {what} vertex {k} is {arr[k].tolist()}; coordinates must be finite (no NaN or infinity)"
         )
     return arr
+
+
+def _overflows(x: Any) -> bool:
+    """Whether the number ``x`` does not fit in a float (an integer beyond about 1.8e308)."""
+    try:
+        float(x)
+    except OverflowError:
+        return True
+    return False
 
 
 def _without_closing(a: np.ndarray) -> np.ndarray:

@@ -56,6 +56,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.ndimage import maximum_filter
 
+from .errors import DirectError
 from .metric import Metric, segment_lengths
 
 __all__ = ["Domain", "GridGraph", "build_graph", "stencil"]
@@ -613,6 +614,13 @@ def _valley_rays(domain: Domain, metric: Metric, pts: np.ndarray):
     return owner, X[last], bends, weights
 
 
+#: the most moves (nodes times stencil moves) a grid may have: building one takes about ``_BYTES_PER_MOVE`` bytes a
+#: move at its peak (measured on ``cross`` with ``refine=False``, 16 neighbours: 1.8 GB for the uniform grid of 1024
+#: cells, 6.8 GB for 2048; the uniform 4096 ran this 23 GB machine out of memory), so about 12 GB
+_MAX_MOVES = 120_000_000
+_BYTES_PER_MOVE = 100
+
+
 def build_graph(
     domain: Domain, metric: Metric, resolution: int = 128, neighbours: int = 16, window: int = 2,
     coarsen: int = 1, patch: int = 2, ratio: float = 4.0
@@ -657,6 +665,14 @@ def build_graph(
     Returns
     -------
     GridGraph
+
+    Raises
+    ------
+    DirectError
+        When the grid would have more than ``_MAX_MOVES`` (1.2e8) moves
+        (nodes times stencil moves), about 12 GB to build: the uniform grid
+        of 4096 cells a side (``coarsen=1``) ran a 23 GB machine out of
+        memory.
 
     Notes
     -----
@@ -712,6 +728,13 @@ def build_graph(
     else:
         kept = inside
     ii, jj = A[kept], B[kept]
+    moves_out = len(ii) * 2 * len(half)
+    if moves_out > _MAX_MOVES:
+        raise DirectError(
+            f"the grid of the pair {domain.pair} would have {len(ii)} nodes with {2 * len(half)} moves each, about "
+            f"{_BYTES_PER_MOVE * moves_out / 1e9:.0f} GB to build ({ns} x {nv} cells at this resolution, "
+            f"coarsen={coarsen}). Lower resolution, or keep the default coarsen=4: the refinement, not the grid, "
+            f"sets the accuracy")
     node_of = np.full((ns + 1, nv + 1), -1, dtype=np.int64)  # -1: outside the domain (or on its boundary)
     node_of[A[inside & ~kept], B[inside & ~kept]] = -2  # -2: inside, but not a node of this grid
     node_of[ii, jj] = np.arange(ng, ng + len(ii))

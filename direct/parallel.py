@@ -66,14 +66,18 @@ _SETTING: contextvars.ContextVar[Setting | None] = contextvars.ContextVar("direc
 _POOL: list = [None, 0, 0]
 
 
+#: the most processes ``workers`` may ask for (2**40 overflowed in the pool: a review at stop 48)
+_MAX_WORKERS = 1024
+
+
 def resolve_workers(workers) -> int:
     """The number of processes ``workers`` asks for.
 
     Parameters
     ----------
     workers : int
-        A whole number of processes, at least 1, or -1 for every CPU this
-        process may run on.
+        A whole number of processes, from 1 to 1024, or -1 for every CPU
+        this process may run on.
 
     Returns
     -------
@@ -82,12 +86,12 @@ def resolve_workers(workers) -> int:
     Raises
     ------
     DirectError
-        For anything else (0, -2, 1.5, a string, a bool).
+        For anything else (0, -2, 1.5, 2**40, a string, a bool).
     """
     ok = isinstance(workers, (int, np.integer)) and not isinstance(workers, (bool, np.bool_))
-    if not ok or not (workers >= 1 or workers == -1):
-        raise DirectError(f"workers must be a whole number of processes, at least 1, or -1 for every CPU, "
-                          f"got {workers!r}")
+    if not ok or not (1 <= workers <= _MAX_WORKERS or workers == -1):
+        raise DirectError(f"workers must be a whole number of processes, from 1 to {_MAX_WORKERS}, or -1 for every "
+                          f"CPU, got {workers!r}")
     if workers == -1:
         return max(len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1), 1)
     return int(workers)

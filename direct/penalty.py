@@ -451,7 +451,13 @@ def _in_deformed_arclength(scene: Scene, crossings: list[Crossing]) -> tuple[Sce
     stop 30, ``test_a_closed_curve_in_uneven_reference_speeds``).  A
     segment shorter than ``_COLLAPSED`` times its component's mean deformed
     segment spans that much parameter; a component collapsed to a point
-    keeps its reference arclength.
+    keeps its reference arclength.  That floor is only for segments that
+    have collapsed (length 0, or rounding): a floor of ``1e-3`` made a loop
+    1e-7 across on an interval of length 2, listed with equal reference
+    segments, come out 57 % above ``J`` with an estimate of 9e-4, without a
+    warning (its two loop segments got 6.7e-4 of parameter each, speeds
+    6,700 times apart again; a review at stop 48,
+    ``test_a_tiny_loop_in_uneven_reference_speeds``).
     """
     comps = []
     for c in scene.components:
@@ -477,8 +483,9 @@ def _in_deformed_arclength(scene: Scene, crossings: list[Crossing]) -> tuple[Sce
 _SPREAD = 16.0
 #: the same for a closed component: any spread beyond rounding (its annulus grid, see _in_deformed_arclength)
 _CLOSED_SPREAD = 1.0 + 1e-9
-#: the least parameter width of a segment in the deformed arclength, relative to its component's mean segment
-_COLLAPSED = 1e-3
+#: the least parameter width of a segment in the deformed arclength, relative to its component's mean segment: a
+#: collapsed one's (1e-3 distorted loops 1e-7 across, see _in_deformed_arclength; at 1e-9, loops 1e-11 across)
+_COLLAPSED = 1e-12
 
 
 def _crossing_point(crossing: Crossing, point: np.ndarray) -> tuple[float, float]:
@@ -1329,7 +1336,8 @@ def penalty(
         routes decide which points are joined and which local geodesic each
         curve settles in, which the estimate does not measure: below the
         default the second pass runs on the default grid as well
-        (``second_pass``), so a coarser grid saves no time.
+        (``second_pass``), so a coarser grid saves no time.  At most 8192:
+        the grid's memory grows as the square (2.2 GB at 4096 cells).
     neighbours : {8, 16, 32}, default 16
         Grid stencil.
     backend : {"scipy", "networkx"}, default "scipy"
@@ -1377,7 +1385,9 @@ def penalty(
         more than a factor 4 across a coarse cell (along the diagonal, and
         where two pieces of the curve come close).  Domains with a circle
         keep the uniform grid.  1 gives the uniform grid of ``resolution``
-        cells everywhere; otherwise at least 4 (larger than every stencil).
+        cells everywhere; otherwise at least 4 (larger than every stencil)
+        and at most ``resolution // 2`` (the coarse lattice has two cells a
+        side at least).
     workers : int, default 1
         Processes that refine the curves of each batch (-1: one per CPU).
         The curves of a batch are refined independently, so the result is
@@ -1426,8 +1436,8 @@ def penalty(
     DirectError
         For an invalid argument (``tol`` not a number in ``(0, 1)``, an
         unknown ``metric`` or ``backend``, a ``power`` the metric refuses,
-        ``resolution`` below 4 or not whole, ``neighbours`` not 8, 16 or 32,
-        ``coarsen`` not 1 or at least 4, ``refine`` not a bool,
+        ``resolution`` below 4, above 8192 or not whole, ``neighbours`` not 8, 16 or 32,
+        ``coarsen`` not 1 or at least 4 or above ``resolution // 2``, ``refine`` not a bool,
         ``second_pass`` not a bool or None, ``workers`` not a whole number of at
         least 1 or -1).  Every error raised on purpose is
         a :class:`DirectError`; the two above are subclasses.
@@ -1527,14 +1537,29 @@ def second_neighbours(neighbours: int, metric: Metric) -> int:
     return max(neighbours, 16)
 
 
+#: the largest ``resolution`` accepted: memory grows as its square (measured on ``cross`` with ``refine=False``:
+#: 0.23 GB at 1024 cells, 0.66 at 2048, 2.2 at 4096; 8192 would take about 9 GB)
+_MAX_RESOLUTION = 8192
+
+
 def _inside(scene: Scene, crossings: list[Crossing]) -> int:
     """How many crossings lie inside ``M x M``: all but the contacts at an end of an open component.
 
     Such a contact (an end on the other curve) is decided by the perturbation rule (``exact=False``) and its
     parameter is the end's; a transversal crossing (``exact=True``), however close to an end, lies inside.
+    An end whose last segments have collapsed onto one point (the same deformed vertex) reaches back to the
+    first of them: from a crossing there a curve runs to the end along ``r = 0``, and ``J = 0`` is right
+    (a review at stop 48: a false warning).
     """
     def at_end(comp, x):
-        return not comp.closed and min(x, comp.length - x) <= 1e-12 * comp.length
+        if comp.closed:
+            return False
+        X = np.asarray(comp.deformed, dtype=float)
+        same = np.all(X == X[0], axis=1).cumprod().astype(bool)  # vertices equal to the first, from the start
+        first = float(comp.params[int(same.sum()) - 1])
+        same = np.all(X == X[-1], axis=1)[::-1].cumprod().astype(bool)
+        last = float(comp.params[len(X) - int(same.sum())])
+        return x <= first + 1e-12 * comp.length or x >= last - 1e-12 * comp.length
 
     return sum(c.exact or not any(at_end(scene.components[i], x) for i, x in zip(c.components, c.params))
                for c in crossings)
@@ -1595,6 +1620,11 @@ def _penalty(scene, metric, power, tol, resolution, neighbours, backend, refine,
     second_pass = None if second_pass is None else bool(second_pass)
     if not is_real_number(resolution) or not float(resolution).is_integer() or int(resolution) < 4:
         raise DirectError(f"resolution must be a whole number of grid cells, at least 4, got {resolution!r}")
+    if resolution > _MAX_RESOLUTION:
+        raise DirectError(
+            f"resolution={resolution!r} is above {_MAX_RESOLUTION} cells: the grid's memory grows as its square "
+            f"(4096 cells took 2.2 GB on 'cross'). The refinement, not the grid, sets the accuracy: ask for a "
+            f"smaller tol instead")
     if backend not in ("scipy", "networkx"):
         raise DirectError(f"backend must be 'scipy' or 'networkx', got {backend!r}")
     if neighbours not in (8, 16, 32):
@@ -1602,6 +1632,10 @@ def _penalty(scene, metric, power, tol, resolution, neighbours, backend, refine,
     if not is_real_number(coarsen) or not np.isfinite(coarsen) or int(coarsen) != coarsen or not (
             coarsen == 1 or coarsen >= 4):
         raise DirectError(f"coarsen must be 1 (a uniform grid) or an integer of at least 4, got {coarsen!r}")
+    if coarsen > max(4, resolution // 2):
+        raise DirectError(f"coarsen={coarsen!r} is above half of resolution={resolution!r}: the coarse lattice needs "
+                          f"two cells a side, so the fine one would grow to 2 * coarsen cells a side (and the patches "
+                          f"around the crossing points with it); use at most resolution // 2, or the default 4")
     settings: dict[str, Any] = dict(met.describe())
     allow_second = second_pass is not False  # grazing domains get a second pass unless it is refused
     coarse = int(resolution) < _DEFAULT_RESOLUTION  # the default computation runs too (second_resolution)
@@ -1701,8 +1735,11 @@ def _penalty(scene, metric, power, tol, resolution, neighbours, backend, refine,
         warnings.warn(
             f"J = {total:.7g} has an error estimate of {rounded_up(err_total)}, above the requested tol={tol:g}, "
             "mostly from rounding: r = phi(x1) - phi(x2) is formed from deformed coordinates much larger than the "
-            "curves reach (a scene far from the origin, or a crossing very close to the end of a component). "
-            "Translate the scene to the origin, or read the value with its error_estimate.",
+            "curves reach (a scene far from the origin, a crossing very close to the end of a component, or a "
+            "loop a few thousand roundings across). The estimate bounds the first-order rounding only: with so "
+            "few digits left the value can be off by more (a loop 1e-13 across at coordinates near 1: 70 % off, "
+            "estimate 3.5 %). Translate the scene to the origin; features below about 1e-12 of its size are beyond "
+            "double precision.",
             ToleranceWarning,
             stacklevel=3,
         )

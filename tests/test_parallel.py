@@ -75,7 +75,7 @@ def test_split_balances_the_work_and_keeps_every_index_once():
     assert parallel.split([], 3) == []
 
 
-@pytest.mark.parametrize("workers", [0, -2, 1.5, True, "2", None])
+@pytest.mark.parametrize("workers", [0, -2, 1.5, True, "2", None, 1025, 2**40])
 def test_workers_must_be_a_whole_number_of_processes(workers):
     with pytest.raises(direct.DirectError, match="workers must be a whole number"):
         direct.penalty("cross", workers=workers)

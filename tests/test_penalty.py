@@ -133,6 +133,40 @@ def test_G_is_invariant_under_reparametrization_and_g_is_not():
         assert abs(l1 - l0) > 10 * RTOL * l0
 
 
+def _small_loop(d: float, octagon: bool) -> np.ndarray:
+    """An interval of length about 2 whose middle makes a loop ``d`` across (a triangle, or an octagon)."""
+    if not octagon:
+        return np.array([[-1, 0], [d, 0], [d / 2, d], [d / 2, -1]])
+    t = np.linspace(-np.pi / 2, 3 * np.pi / 2, 8, endpoint=False)[1:]
+    return np.vstack([[-1, 0], [0.5 * d, 0], np.column_stack([d * np.cos(t), d + d * np.sin(t)]),
+                      [-0.5 * d, 0.4 * d], [0.3 * d, -1]])
+
+
+@pytest.mark.parametrize("octagon", [False, True])
+@pytest.mark.parametrize("d", [1e-7, 1e-9])
+def test_a_tiny_loop_in_uneven_reference_speeds(d, octagon):
+    """A loop ``d`` across listed with equal reference segments has ``J^G`` of the deformed arclength (Prop. 18).
+
+    Its speeds span ``1/d``, so it is computed in its deformed arclength;
+    there a collapsed segment gets a least parameter width.  At ``1e-3`` of
+    the mean segment that floor gave the loop's segments 6.7e-4 each (speeds
+    6,700 apart again): at ``d = 1e-7`` the triangle came out 57 % above
+    ``J`` with an estimate of 9e-4 and the octagon 3e-3 above with 9e-9,
+    without a warning (a review at stop 48).
+    """
+    X = _small_loop(d, octagon)
+    arclength = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(X, axis=0), axis=1))])
+    equal = direct.Component(np.column_stack([np.arange(len(X)), np.zeros(len(X))]), X, name="loop")
+    own = direct.Component(np.column_stack([arclength, np.zeros(len(X))]), X, name="loop")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", direct.ToleranceWarning)
+        a = direct.penalty(direct.Scene((equal,)))
+        b = direct.penalty(direct.Scene((own,)))
+    assert a.settings["deformed_arclength"] == ["loop"] and "deformed_arclength" not in b.settings
+    assert len(a.crossings) == 1 and a.value > 0
+    assert abs(a.value - b.value) <= a.error_estimate + b.error_estimate
+
+
 @pytest.mark.slow
 @settings(max_examples=4, deadline=None, derandomize=True)
 @given(seed=st.integers(0, 5), steps=st.lists(st.floats(0.2, 3.0), min_size=8, max_size=8))
@@ -215,9 +249,15 @@ def test_bad_settings():
     for coarsen in (0, 2, 3, 4.5):  # a coarse lattice must be 1 (none) or coarser than every stencil's reach
         with pytest.raises(direct.DirectError, match="coarsen"):
             direct.penalty("cross", coarsen=coarsen)
-    for resolution in (2, 100.5, True):
+    for resolution in (2, 100.5, True, 8193, 10**9):  # 10**9 ran out of memory (a review at stop 48)
         with pytest.raises(direct.DirectError, match="resolution"):
             direct.penalty("cross", resolution=resolution)
+    for coarsen, resolution in ((65, 128), (10**6, 128), (9, 16)):  # coarsen=10**6 asked numpy for 29 TiB
+        with pytest.raises(direct.DirectError, match="coarsen=.* is above half of resolution"):
+            direct.penalty("cross", coarsen=coarsen, resolution=resolution)
+    assert direct.penalty("cross", coarsen=8, resolution=16, refine=False).value > 0  # at most half is fine
+    with pytest.raises(direct.DirectError, match="would have 16769025 nodes"):  # 24 GB and more: refused at once
+        direct.penalty("cross", resolution=4096, coarsen=1, refine=False)
     with pytest.raises(direct.DirectError, match="backend"):
         direct.penalty("cross", backend="igraph")
     for power in (True, "2", [2], 1j, 0, -1, float("nan"), 1e6):
@@ -656,6 +696,18 @@ def test_a_contact_at_an_end_gives_zero_without_a_warning():
         warnings.simplefilter("error")
         res = direct.penalty(sc)
     assert [c.exact for c in res.crossings] == [False]
+    assert res.value == 0.0 and res.error_estimate == 0.0
+
+
+@pytest.mark.parametrize("order", [(0, 1), (1, 0)])
+def test_a_crossing_where_a_collapsed_end_begins_gives_zero_without_a_warning(order):
+    """A's last segment collapses onto its vertex on B: from that crossing a curve runs to A's end along ``r = 0``,
+    so ``J = 0`` exactly. It warned of underflow, listed as (A, B) (a review at stop 48)."""
+    comps = (direct.Component([[0, 0], [0.5, 0], [1, 0]], [[-0.5, 0], [0, 0], [0, 0]], name="A"),
+             direct.Component([[0, 2], [1, 2]], [[0, -0.5], [0, 0.5]], name="B"))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        res = direct.penalty(direct.Scene(tuple(comps[i] for i in order)))
     assert res.value == 0.0 and res.error_estimate == 0.0
 
 

@@ -65,6 +65,8 @@ def test_reversal_keeps_the_image():
     [
         (dict(reference=[[0, 0], [np.nan, 1]], deformed=[[0, 0], [1, 1]]), r"reference vertex 1 .*finite"),
         (dict(reference=[[0, 0], [1, 1]], deformed=[[0, 0], [np.inf, 1]]), r"deformed vertex 1 .*finite"),
+        # an integer beyond the floats (a JSON file's 10**400) raised OverflowError (a review at stop 48)
+        (dict(reference=[[0, 0], [10**400, 0]], deformed=[[0, 0], [1, 0]]), r"reference vertex 1 .*too large"),
         (dict(reference=[[0, 0]], deformed=[[0, 0]]), "at least 2 vertices"),
         (dict(reference=[[0, 0], [1, 0]], deformed=[[0, 0], [1, 0]], closed=True), "at least 3 vertices"),
         (dict(reference=[[0, 0], [1, 0], [2, 0]], deformed=[[0, 0], [1, 0]]), "3 reference vertices but 2 deformed"),
