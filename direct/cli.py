@@ -59,11 +59,11 @@ def _add_method_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--tol", type=float, default=1e-3, help="relative tolerance of each refined geodesic (default 1e-3)")
     p.add_argument(
         "--resolution", type=int, default=128, metavar="N",
-        help="grid cells along the longer side of a domain (128; below it the default grid is solved too)"
+        help="grid cells along the longer side of a domain (128; below it the default grid is solved too; at most 8192)"
     )
     p.add_argument(
         "--coarsen", type=int, default=4, metavar="C",
-        help="grid C times coarser away from the crossing points (default 4; 1: uniform grid)",
+        help="grid C times coarser away from the crossing points (default 4; 1: uniform grid; at most N / 2)",
     )
     p.add_argument("--neighbours", type=int, choices=[8, 16, 32], default=16, help="grid stencil (default 16)")
     p.add_argument("--backend", choices=["scipy", "networkx"], default="scipy", help="shortest-path backend")
