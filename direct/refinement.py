@@ -131,6 +131,31 @@ def _sides(domain: Domain, q: np.ndarray) -> list:
     return out
 
 
+#: the least central-difference step of the Hessian (:func:`_segment_derivatives`), relative to the domain: a few
+#: thousand roundings of its coordinates (see :func:`_least_steps`)
+_FD_FLOOR = 1e-12
+
+
+def _least_steps(seg: np.ndarray, length: np.ndarray, scale: float) -> np.ndarray:
+    """The central-difference steps of the Hessian for segments ``seg`` of curves ``length`` long (parameters).
+
+    A step is 1e-3 of its segment, at most 1e-6 of the domain (``scale``),
+    and at least 1e-9 of it: the rule every study validated.  A curve
+    shorter than 1e-3 of the domain lowers that least step in proportion,
+    down to ``_FD_FLOOR``: a least step of 1e-9 of the domain held the steps
+    of a loop 1e-10 across at 200 times its segments, and its Newton
+    stalled, 1.3e-3 (relative) above ``J`` with an estimate of 8.5e-4 (a
+    pentagon loop with collinear vertices on an interval of length 2; a loop
+    1 across on tails 1e10 long, 5e-4 above: a review at stop 48).  The
+    proportional floor leaves every curve at least 1e-3 of its domain long
+    as it was, bit for bit (lowering the floor to ``_FD_FLOOR`` everywhere
+    moved most values of the studies, within their estimates, and made the
+    built-in scenes slower: ``validation/same_values.py``).
+    """
+    least = np.maximum(1e-9 * scale * np.minimum(1.0, length / (1e-3 * scale)), _FD_FLOOR * scale)
+    return np.minimum(1e-6 * scale, np.maximum(1e-3 * seg, least))
+
+
 def _segment_derivatives(metric: Metric, comps, P: np.ndarray, Q: np.ndarray, step: float,
                          hessian: bool = True):
     """Length, gradient (m, 4) and Hessian (m, 4, 4) of each segment in its end coordinates ``(P1, P2, Q1, Q2)``.
@@ -1260,7 +1285,6 @@ def _optimize_level(domain: Domain, metric: Metric, X0: np.ndarray, modes: _Mode
     if par.nv == 0:
         return X0, True
     n = par.n
-    step = 1e-6 * scale
     k = np.arange(n)
     loc = np.column_stack([2 * k, 2 * k + 1, 2 * k + 2, 2 * k + 3])
 
@@ -1276,7 +1300,7 @@ def _optimize_level(domain: Domain, metric: Metric, X0: np.ndarray, modes: _Mode
 
     def assemble(X):
         seg = np.linalg.norm(X[1:] - X[:-1], axis=1)
-        steps = np.minimum(step, np.maximum(1e-3 * seg, 1e-9 * scale))  # short segments get short steps
+        steps = _least_steps(seg, float(seg.sum()), scale)  # short segments get short steps
         f, gl, Hl = _segment_derivatives(metric, comps, X[:-1], X[1:], steps)
         at[:] = [X, f, gl, Hl]
         gX = np.bincount(loc.ravel(), weights=gl.ravel(), minlength=2 * (n + 1))
@@ -1403,7 +1427,9 @@ class _Stack:
         s, P, Q = self._segments(X, curves)
         m = len(s)
         seg = _row_norms(Q - P)
-        h = np.minimum(1e-6 * self.scale, np.maximum(1e-3 * seg, 1e-9 * self.scale))[:, None]  # short, short steps
+        curve = self.s_curve[s]
+        length = np.bincount(curve, weights=seg, minlength=self.C).take(curve)
+        h = _least_steps(seg, length, self.scale)[:, None]  # short segments get short steps
         p = self.seg_p[s]
         Ep, Eq = self.Ev[p], self.Ev[p + 1]
         Ps = np.vstack([P, P + h * Ep, P - h * Ep, P, P])

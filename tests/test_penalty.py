@@ -167,6 +167,33 @@ def test_a_tiny_loop_in_uneven_reference_speeds(d, octagon):
     assert abs(a.value - b.value) <= a.error_estimate + b.error_estimate
 
 
+@pytest.mark.parametrize("size, tail", [(1e-10, 1.0), (1.0, 1e10)])
+def test_a_loop_far_smaller_than_its_domain_with_collinear_vertices(size, tail):
+    """A pentagon loop ``size`` across on tails ``tail`` long, with two collinear vertices added on every segment.
+
+    The same deformed curve (Prop. 18): the value less its estimate must not exceed the plain listing's
+    ``upper_bound``, an upper bound of ``J``.  The Hessian's central differences had a least step of 1e-9 of the
+    domain, 200 times the loop's segments: Newton stalled, 1.3e-3 (relative) above ``J`` with an estimate of
+    8.5e-4 (the octagon on tails 1e10 long: 5e-4 above, no warning; a review at stop 48).
+    """
+    t = np.linspace(-np.pi / 2, 3 * np.pi / 2, 5, endpoint=False)[1:]
+    X = np.vstack([[-tail, 0], [0.5 * size, 0], np.column_stack([size * np.cos(t), size + size * np.sin(t)]),
+                   [-0.5 * size, 0.4 * size], [0.3 * size, -tail]])
+    rng = np.random.default_rng(1)
+    pieces = [[a] + [a + s * (b - a) for s in np.sort(rng.uniform(0.05, 0.95, 2))] for a, b in zip(X[:-1], X[1:])]
+    Xc = np.vstack([p for piece in pieces for p in piece] + [X[-1:]])
+
+    def listed(Y):
+        s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(Y, axis=0), axis=1))])
+        return direct.Scene((direct.Component(np.column_stack([s, np.zeros(len(s))]), Y, name="loop"),))
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", direct.ToleranceWarning)
+        plain, collinear = direct.penalty(listed(X)), direct.penalty(listed(Xc))
+    for a, b in ((plain, collinear), (collinear, plain)):
+        assert a.value - a.error_estimate <= b.upper_bound
+
+
 @pytest.mark.slow
 @settings(max_examples=4, deadline=None, derandomize=True)
 @given(seed=st.integers(0, 5), steps=st.lists(st.floats(0.2, 3.0), min_size=8, max_size=8))
