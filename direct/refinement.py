@@ -1231,6 +1231,10 @@ def _kinked_unknowns(par: _Parametrization, X: np.ndarray, f: np.ndarray, gl: np
     return np.unique(par.M.tocsr()[rows].indices)
 
 
+#: a domain whose longer side exceeds its shorter this many times bounds the polish axis by axis (see _lbfgs_polish)
+_ANISOTROPIC = 1e3
+
+
 def _lbfgs_polish(domain: Domain, metric: Metric, par: _Parametrization, X: np.ndarray, scale: float) -> np.ndarray:
     """Quasi-Newton (L-BFGS-B) on the exact gradient from ``X``: robust where the length has kinks."""
     comps = domain.comps
@@ -1252,6 +1256,16 @@ def _lbfgs_polish(domain: Domain, metric: Metric, par: _Parametrization, X: np.n
         return float(fl.sum()) / f0, (Mt @ gX) / f0
 
     wide = 10.0 * scale
+    lengths = np.asarray(domain.lengths, dtype=float)
+    if lengths.max() > _ANISOTROPIC * lengths.min():
+        # each unknown moves its vertex at most 10 of each axis's own length: a circle 6e-8 long beside one of
+        # 6.3 let the box of 10 * scale span 1e9 of its periods, and the lengths of a trial curve built its
+        # vertex lines over all of them (15 GiB; a review at stop 48)
+        rows, cols, vals = (np.asarray(a) for a in par._triplets)
+        moves = np.abs(vals.astype(float)) > 0
+        reach = np.full(len(z), wide)
+        np.minimum.at(reach, cols[moves].astype(int), 10.0 * lengths[rows[moves].astype(int) % 2] / np.abs(vals[moves]))
+        wide = reach
     bounds = np.column_stack([z - wide, z + wide])
     k = par._slide_idx
     bounds[k, 0] = np.maximum(par._lo, bounds[k, 0])

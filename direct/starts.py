@@ -759,7 +759,8 @@ def _crease_starts(domain: Domain, path: RefinedPath, cell: float, start_ground:
     starts = []
     for axis, comp in enumerate(domain.comps):
         x = X[1:-1, axis]
-        vp = _vertex_params(comp, float(x.min()) - 1.0, float(x.max()) + 1.0)
+        reach = min(1.0, comp.length)  # a period holds every line (a circle 6e-9 long: 3e8 periods in 1.0)
+        vp = _vertex_params(comp, float(x.min()) - reach, float(x.max()) + reach)
         if len(vp) < 2:
             continue
         i = np.clip(np.searchsorted(vp, x), 1, len(vp) - 1)
@@ -872,7 +873,8 @@ def _corner_vertices(domain: Domain, X: np.ndarray, closed: bool) -> np.ndarray:
     corner = np.empty((len(inner), 2))
     for axis, comp in enumerate(domain.comps):
         x = X[inner, axis]
-        vp = _vertex_params(comp, float(x.min()) - 1.0, float(x.max()) + 1.0)
+        reach = min(1.0, comp.length)  # a period holds every line (a circle 6e-9 long: 3e8 periods in 1.0)
+        vp = _vertex_params(comp, float(x.min()) - reach, float(x.max()) + reach)
         if len(vp) == 0:
             return inner[:0]
         i = np.clip(np.searchsorted(vp, x), 1, max(len(vp) - 1, 1))

@@ -1647,3 +1647,47 @@ def test_best_of_closed_starts_by_length_plus_estimate():
     plain = direct.starts._best_of_starts([rough, near, good, far], 5e-4)
     assert plain.length == rough.length
     assert plain.error_estimate == pytest.approx(rough.error_estimate + (near.length - rough.length), rel=1e-12)
+
+
+def _polygon(n: int, radius: float = 1.0, centre=(0.0, 0.0), phase: float = 0.0) -> np.ndarray:
+    t = phase + 2 * np.pi * np.arange(n) / n
+    return np.column_stack([centre[0] + radius * np.cos(t), centre[1] + radius * np.sin(t)])
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="address-space limit (resource.RLIMIT_AS): Linux")
+@pytest.mark.parametrize("n_big, n_small, near_vertex", [(32, 12, True), (16, 8, False)])
+def test_a_tiny_polygon_crossing_a_large_one_scales_as_its_size_cubed(n_big, n_small, near_vertex):
+    """A polygon ``s`` across crossing an edge of a unit polygon: ``J^G`` is local, so ``J / s^3`` stays put.
+
+    Its torus piece is 1e8 times longer one way than the other.  At ``s = 1e-8`` and ``1e-9`` the polish's
+    box (10 times the longer side) spanned 1e9 periods of the small circle, and the folded and corner starts
+    looked for vertex lines 1.0 around the curve (3e8 periods): numpy asked for 15 and 19.5 GiB and the
+    process was killed (a review at stop 48).  Run with 4 GB of address space beyond what the process uses,
+    so that a relapse fails here instead of taking the machine down.
+    """
+    import resource
+
+    A = _polygon(n_big)
+    a, b = A[0], A[1]
+    mid = 0.5 * (a + b)
+    out, along = mid / np.linalg.norm(mid), (b - a) / np.linalg.norm(b - a)
+
+    def scene(s):
+        c = a + 2 * s * along - 0.3 * s * out if near_vertex else mid - 0.3 * s * out
+        return direct.Scene((direct.Component(A, A, closed=True, name="A"),
+                             direct.Component(_polygon(n_small, 0.5), _polygon(n_small, s, c, 0.1), closed=True,
+                                              name="B")))
+
+    with open("/proc/self/statm") as fh:  # the address space in use now, in pages
+        in_use = int(fh.read().split()[0]) * resource.getpagesize()
+    soft, hard = resource.getrlimit(resource.RLIMIT_AS)
+    limit = in_use + 4 * 2**30
+    resource.setrlimit(resource.RLIMIT_AS, (limit if hard == resource.RLIM_INFINITY else min(limit, hard), hard))
+    try:
+        results = {s: direct.penalty(scene(s)) for s in (1e-6, 1e-8, 1e-9)}
+    finally:
+        resource.setrlimit(resource.RLIMIT_AS, (soft, hard))
+    ref = results[1e-6]
+    for s, r in results.items():
+        assert len(r.crossings) == 2 and r.value > 0
+        assert abs(r.value / s**3 - ref.value / 1e-18) <= r.error_estimate / s**3 + ref.error_estimate / 1e-18
