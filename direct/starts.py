@@ -714,6 +714,15 @@ def _transplanted_starts(domain: Domain, metric: Metric, keys: list, held: dict,
     return _beating_own(domain, metric, todo, held, domain.n_grounds) if todo else {}
 
 
+def _lines_around(comp, x: np.ndarray) -> np.ndarray:
+    """The vertex parameters of ``comp`` from a period (at most 1.0) below ``x`` to one above: the nearest lines.
+
+    Not a fixed 1.0 around: a circle 6e-9 long made that 3e8 periods of lines (19.5 GiB; a review at stop 48).
+    """
+    reach = min(1.0, comp.length)
+    return _vertex_params(comp, float(x.min()) - reach, float(x.max()) + reach)
+
+
 def _crease_starts(domain: Domain, path: RefinedPath, cell: float, start_ground: int | None = None,
                    end_ground: int | None = None) -> list[GeodesicJob]:
     """Starts that move a chosen curve's stretch along a vertex line wholly to one side of it (or none).
@@ -759,8 +768,7 @@ def _crease_starts(domain: Domain, path: RefinedPath, cell: float, start_ground:
     starts = []
     for axis, comp in enumerate(domain.comps):
         x = X[1:-1, axis]
-        reach = min(1.0, comp.length)  # a period holds every line (a circle 6e-9 long: 3e8 periods in 1.0)
-        vp = _vertex_params(comp, float(x.min()) - reach, float(x.max()) + reach)
+        vp = _lines_around(comp, x)
         if len(vp) < 2:
             continue
         i = np.clip(np.searchsorted(vp, x), 1, len(vp) - 1)
@@ -873,8 +881,7 @@ def _corner_vertices(domain: Domain, X: np.ndarray, closed: bool) -> np.ndarray:
     corner = np.empty((len(inner), 2))
     for axis, comp in enumerate(domain.comps):
         x = X[inner, axis]
-        reach = min(1.0, comp.length)  # a period holds every line (a circle 6e-9 long: 3e8 periods in 1.0)
-        vp = _vertex_params(comp, float(x.min()) - reach, float(x.max()) + reach)
+        vp = _lines_around(comp, x)
         if len(vp) == 0:
             return inner[:0]
         i = np.clip(np.searchsorted(vp, x), 1, max(len(vp) - 1, 1))
