@@ -1261,11 +1261,11 @@ def _lbfgs_polish(domain: Domain, metric: Metric, par: _Parametrization, X: np.n
         # each unknown moves its vertex at most 10 of each axis's own length: a circle 6e-8 long beside one of
         # 6.3 let the box of 10 * scale span 1e9 of its periods, and the lengths of a trial curve built its
         # vertex lines over all of them (15 GiB; a review at stop 48)
-        rows, cols, vals = (np.asarray(a) for a in par._triplets)
-        moves = np.abs(vals.astype(float)) > 0
-        reach = np.full(len(z), wide)
-        np.minimum.at(reach, cols[moves].astype(int), 10.0 * lengths[rows[moves].astype(int) % 2] / np.abs(vals[moves]))
-        wide = reach
+        rows, cols = np.asarray(par._triplets[0], dtype=int), np.asarray(par._triplets[1], dtype=int)
+        vals = np.abs(np.asarray(par._triplets[2], dtype=float))
+        moves = vals > 0
+        wide = np.full(len(z), wide)
+        np.minimum.at(wide, cols[moves], 10.0 * lengths[rows[moves] % 2] / vals[moves])
     bounds = np.column_stack([z - wide, z + wide])
     k = par._slide_idx
     bounds[k, 0] = np.maximum(par._lo, bounds[k, 0])
