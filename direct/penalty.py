@@ -1438,8 +1438,8 @@ def penalty(
         unknown ``metric`` or ``backend``, a ``power`` the metric refuses,
         ``resolution`` below 4, above 8192 or not whole, ``neighbours`` not 8, 16 or 32,
         ``coarsen`` not 1 or at least 4 or above ``resolution // 2``, ``refine`` not a bool,
-        ``second_pass`` not a bool or None, ``workers`` not a whole number of at
-        least 1 or -1).  Every error raised on purpose is
+        ``second_pass`` not a bool or None, ``workers`` not a whole number from
+        1 to 1024 or -1).  Every error raised on purpose is
         a :class:`DirectError`; the two above are subclasses.
 
     Examples
@@ -1538,7 +1538,7 @@ def second_neighbours(neighbours: int, metric: Metric) -> int:
 
 
 #: the largest ``resolution`` accepted: memory grows as its square (measured on ``cross`` with ``refine=False``:
-#: 0.23 GB at 1024 cells, 0.66 at 2048, 2.2 at 4096; 8192 would take about 9 GB)
+#: 0.23 GB at 1024 cells, 0.66 at 2048, 2.2 at 4096, 8.6 at 8192)
 _MAX_RESOLUTION = 8192
 
 
@@ -1737,7 +1737,7 @@ def _penalty(scene, metric, power, tol, resolution, neighbours, backend, refine,
             "mostly from rounding: r = phi(x1) - phi(x2) is formed from deformed coordinates much larger than the "
             "curves reach (a scene far from the origin, a crossing very close to the end of a component, or a "
             "loop a few thousand roundings across). The estimate bounds the first-order rounding only: with so "
-            "few digits left the value can be off by more (a loop 1e-13 across at coordinates near 1: 70 % off, "
+            "few digits left the value can be off by more (a loop 1e-13 across at coordinates near 1: 73 % off, "
             "estimate 3.5 %). Translate the scene to the origin; features below about 1e-12 of its size are beyond "
             "double precision.",
             ToleranceWarning,
