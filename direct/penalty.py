@@ -577,8 +577,11 @@ def _polyline(comp, which: str, other=None, level: float | None = None) -> str:
     return out
 
 
-def _free_level(values: np.ndarray, period: float | None, length: float, on=None, other=None) -> float:
+def _free_level(values: np.ndarray, period: float | None, length: float, on=None, other=None,
+                above: bool = False) -> float:
     """A level in the gap of ``values`` that contains 0 (periodic) or below all of them (not periodic).
+
+    With ``above`` (not periodic), the gap above all of them instead, up to ``length``.
 
     Every level of the gap gives the same loop class, hence the same period
     of eq. (6), as long as the point it puts on one curve is off the other.
@@ -590,12 +593,13 @@ def _free_level(values: np.ndarray, period: float | None, length: float, on=None
     (touching triangles: 0 crossings and ``J = 267`` with no warning; an
     adversarial review), or raised a DegenerateError that depended only on
     which vertex a closed curve started at.  Where every level of the gap
-    lies on the other curve, the DegenerateError stands.
+    lies on the other curve, a DegenerateError is raised
+    (:func:`boundary_conditions` then tries an interval's other end).
     """
     if len(values) == 0:
         lo, hi = 0.0, length
     elif period is None:
-        lo, hi = 0.0, float(np.min(values))
+        lo, hi = (float(np.max(values)), length) if above else (0.0, float(np.min(values)))
     else:  # the gap across 0: from the largest value to the smallest one a period on (values lie in [0, period))
         lo, hi = float(np.max(values)), period + float(np.min(values))
     levels = lo + (hi - lo) * (np.arange(_LEVEL_SAMPLES) + 0.5) / _LEVEL_SAMPLES
@@ -611,9 +615,9 @@ def _free_level(values: np.ndarray, period: float | None, length: float, on=None
         # every level of the gap lies where the curves touch: the winding number would be rounding's choice
         raise DegenerateError(
             f"the deformed polyline of component {on.name!r} runs along that of component {other.name!r} over the "
-            "whole stretch between its crossings and its end (or around the circle), touching it without crossing: "
-            "the topological condition of this pair cannot be read off a point of it. Move one of the two curves "
-            "off the other along that stretch."
+            "whole of each stretch between its crossings and its ends (or around the circle), touching it without "
+            "crossing: the topological condition of this pair cannot be read off a point of it. Move one of the "
+            "two curves off the other along one of those stretches."
         )
     return float(levels[best])
 
@@ -660,9 +664,20 @@ def boundary_conditions(domain: Domain) -> dict[str, Any]:
         on = other = None
         if kind == "cylinder":  # the interval's point at the level, away from the circle
             on, other = (cj, ci) if ci.closed else (ci, cj)
-        v0 = _free_level(st[:, 1], None, V, on, other)
+        below = 0
+        try:
+            v0 = _free_level(st[:, 1], None, V, on, other)
+        except DegenerateError:
+            if kind == "annulus":
+                raise
+            # the interval's first stretch lies on the circle (it starts on it: a contact at its end, which the
+            # perturbation may count as a crossing at 0): read the period beyond its last crossing, where its
+            # point has crossed the circle at every crossing, the winding number jumping by -s each time
+            # (s = sign det(phi_i', phi_j'), i the interval): the period below is that one plus the sum of s
+            v0 = _free_level(st[:, 1], None, V, on, other, above=True)
+            below = int(domain.signs.sum()) * (1 if on is ci else -1)
         level = domain.to_param(np.array([[0.0, v0]]))[0][1 if domain.basis[1, 1] else 0]
-        return {"flux": -sign * _period(domain, level)}
+        return {"flux": -sign * (_period(domain, level) + below)}
     # torus: seam s = 0 is the loop v -> (s0, v); seam v = 0 the loop s -> (s, v0)
     s0 = _free_level(st[:, 0], S, S, ci, cj)
     v0 = _free_level(st[:, 1], V, V, cj, ci)
