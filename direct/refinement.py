@@ -41,6 +41,7 @@ refining it alone.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -1823,6 +1824,7 @@ class _Curve:
         self.length = 0.0  # the length after the latest round of the current level
         self.gains: list[float] = []  # what each round of the current level gained (see _remaining_gain)
         self.result: RefinedPath | None = None
+        self.above: float | None = None  # a length it need not be refined below (refine_many's ``above``)
 
 
 #: a round gaining more than this fraction of ``tol`` (relative) is followed by another, which measures the ratio
@@ -1940,6 +1942,18 @@ def _finish(c: _Curve, tol: float, atol: float, last: bool = True) -> bool:
     The estimate is the whole last difference, three times that
     correction: the first levels are not always asymptotic.
     """
+    Ln, diff, estimate = _level_estimate(c)
+    # three levels at least: the change between the first two is often not yet in the asymptotic range (measured:
+    # 3.8e-3 off at tol 1e-3 after two), and the third checks it through the ratio
+    if not ((estimate <= max(tol * abs(Ln), atol) and len(c.history) >= 3) or last):
+        return False
+    # the extrapolation stays within [0, Ln]: Ln is the exact length of a curve of the class
+    c.result = RefinedPath(c.X, min(max(Ln - diff / 3.0, 0.0), Ln), Ln, estimate, len(c.X) - 1)
+    return True
+
+
+def _level_estimate(c: _Curve) -> tuple[float, float, float]:
+    """``(L_n, L_{n/2} - L_n, estimate)`` of a curve from its levels' lengths ``c.history`` (see :func:`_finish`)."""
     h = c.history
     Ln = h[-1]
     diff = h[-2] - h[-1]
@@ -1956,13 +1970,23 @@ def _finish(c: _Curve, tol: float, atol: float, last: bool = True) -> bool:
             estimate = max(estimate, _remaining_gain([prev, abs(diff)]))
     # what further rounds could still gain: the optimization of the last level may not have finished
     estimate += _remaining_gain(c.gains)
-    # three levels at least: the change between the first two is often not yet in the asymptotic range (measured:
-    # 3.8e-3 off at tol 1e-3 after two), and the third checks it through the ratio
-    if not ((estimate <= max(tol * abs(Ln), atol) and len(h) >= 3) or last):
+    return Ln, diff, estimate
+
+
+#: a curve refined with a bound (refine_many's ``above``) is given up once its extrapolated length lies above the
+#: bound by more than this many times its estimate ...
+_GIVE_UP_ESTIMATES = 10.0
+#: ... and by more than this fraction of the bound
+_GIVE_UP_GAP = 1e-2
+
+
+def _given_up(c: _Curve) -> bool:
+    """Whether a curve with a bound ``c.above`` lies clearly above it after three levels (see :func:`refine_many`)."""
+    if c.above is None or len(c.history) < 3:
         return False
-    # the extrapolation stays within [0, Ln]: Ln is the exact length of a curve of the class
-    c.result = RefinedPath(c.X, min(max(Ln - diff / 3.0, 0.0), Ln), Ln, estimate, len(c.X) - 1)
-    return True
+    Ln, diff, estimate = _level_estimate(c)
+    gap = min(max(Ln - diff / 3.0, 0.0), Ln) - c.above
+    return bool(gap > _GIVE_UP_ESTIMATES * estimate and gap > _GIVE_UP_GAP * abs(c.above))
 
 
 def _halved(domain: Domain, X: np.ndarray, modes: _Modes) -> tuple[np.ndarray, _Modes]:
@@ -2105,6 +2129,7 @@ def refine_many(
     start: int = 8,
     max_segments: int = 512,
     max_rounds: int = 8,
+    above: Sequence[float | None] | None = None,
 ) -> list[RefinedPath]:
     """Refine grid routes into geodesics: minimize their exact lengths, multilevel, all curves together.
 
@@ -2137,6 +2162,18 @@ def refine_many(
         a level stops earlier when what further rounds could still gain,
         extrapolated from the ratio of successive gains, is below
         ``tol / 100`` of the length.
+    above : sequence of float or None, optional
+        One per job (``None``: none), a length the caller needs a result
+        below of, no more: the further starts of :mod:`direct.starts`, which
+        only count where they end within a ten-thousandth above the curve
+        they check.  A curve whose extrapolated length, after its third
+        level, lies above its bound by more than ten times its estimate and
+        by more than 1 % of the bound is given up there (its result that
+        level's, with that level's estimate): the interval loop of a nodal
+        cubic, whose straight curve to the diagonal gets four bent starts,
+        refined two of them 14 % above it to 6,104 and 5,758 vertices at
+        ``tol=1e-5`` (31 of its 62 s, twice over).  Routes as fine as a last
+        level (below) are never given up.
 
     Returns
     -------
@@ -2164,7 +2201,9 @@ def refine_many(
     if parallel.current() > 1 and len(jobs) > 1:  # direct.penalty(..., workers=N): parts on other processes
         parts = parallel.split(_route_work(domain, jobs), parallel.current())
         results = parallel.run_parts(refine_many, [(domain, metric, [jobs[i] for i in part], tol, atol, start,
-                                                    max_segments, max_rounds) for part in parts])
+                                                    max_segments, max_rounds,
+                                                    None if above is None else [above[i] for i in part])
+                                                   for part in parts])
         if results is not None:  # else no worker could take a part (a warning said why): all of it here
             out: list = [None] * len(jobs)
             for part, refined in zip(parts, results):
@@ -2184,9 +2223,10 @@ def refine_many(
             if L <= Lr:
                 routes[k] = X
     curves = []
-    for job, route in zip(jobs, routes):
+    for k, (job, route) in enumerate(zip(jobs, routes)):
         X, modes = _initial_polyline(domain, route, start, job.start_ground, job.end_ground, job.closed)
         curves.append(_Curve(job, X, modes, fine=len(route) - 1 >= max_segments))
+        curves[-1].above = None if above is None else above[k]
     fine = [c for c in curves if c.fine]
     if fine:
         _levels_down(domain, metric, fine, scale, tol, max_rounds)
@@ -2201,7 +2241,7 @@ def refine_many(
         nxt = []
         for c in live:
             c.history.append(c.length)  # the length of the last round's polyline
-            if len(c.history) >= 2 and _finish(c, tol, atol, last=n >= cap):
+            if len(c.history) >= 2 and _finish(c, tol, atol, last=n >= cap or _given_up(c)):
                 continue
             if len(c.history) == 1 and c.length == 0.0:
                 c.result = RefinedPath(c.X, 0.0, 0.0, 0.0, len(c.X) - 1)

@@ -242,7 +242,11 @@ def _restarted(domain: Domain, metric: Metric, starts: dict, held: dict, tol: fl
     starts = {k: jobs for k, jobs in starts.items() if jobs}
     if not starts:
         return {}
-    refined = iter(refine_many(domain, metric, [j for jobs in starts.values() for j in jobs], tol=tol, atol=atol))
+    # a start that ends more than _CORNER_FAMILY above the curve it checks counts for nothing below: refined only
+    # until it lies clearly above that (refine_many's ``above``)
+    above = [(1 + _CORNER_FAMILY) * held[k].length for k, jobs in starts.items() for _ in jobs]
+    refined = iter(refine_many(domain, metric, [j for jobs in starts.values() for j in jobs], tol=tol, atol=atol,
+                               above=above))
     out = {}
     for k, jobs in starts.items():
         found = [next(refined) for _ in jobs]

@@ -306,6 +306,27 @@ def test_a_start_made_from_a_refined_curve_keeps_its_own_size():
     assert ordinary[1] > 1.5 * ordinary[0] and ordinary[2] > 1.5 * ordinary[1]
 
 
+@pytest.mark.parametrize("seed", [3, 11])
+def test_a_curve_clearly_above_its_bound_is_given_up_after_its_third_level(seed):
+    """``refine_many(..., above=...)``: a curve whose extrapolated length lies above its bound by more than ten
+    estimates and 1 % stops at that level, with that level's estimate, which covers the full refinement; a bound
+    above the length, or none, changes nothing, bit for bit (the further starts of ``direct.starts``)."""
+    dom, met, jobs = _jobs(random_crossing_scene(seed, min_crossings=2, max_crossings=4))
+    full = refine_many(dom, met, jobs, tol=1e-7)
+    below = [0.5 * rp.length for rp in full]
+    given = refine_many(dom, met, jobs, tol=1e-7, above=below)
+    fewer = 0
+    for rp, g, b in zip(full, given, below):
+        assert g.length > b and g.upper >= g.length
+        assert abs(g.length - rp.length) <= g.error_estimate
+        fewer += g.segments < rp.segments
+    assert fewer == len(jobs)
+    mixed = [None if k % 2 else 2.0 * rp.length for k, rp in enumerate(full)]
+    for rp, same in zip(full, refine_many(dom, met, jobs, tol=1e-7, above=mixed)):
+        assert (same.length, same.upper, same.error_estimate) == (rp.length, rp.upper, rp.error_estimate)
+        assert np.array_equal(same.points, rp.points)
+
+
 def test_a_fine_start_its_own_level_cannot_settle_goes_back_up_from_a_coarser_one():
     """A fine start settles at its own size, then at every other vertex, twice; where a coarser level settles
     shorter, its own level stopped short of its geodesic, and the curve goes back up from the coarsest.  A refined
