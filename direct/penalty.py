@@ -578,10 +578,10 @@ def _polyline(comp, which: str, other=None, level: float | None = None) -> str:
 
 
 def _free_level(values: np.ndarray, period: float | None, length: float, on=None, other=None,
-                above: bool = False) -> float:
+                gap: tuple[float, float] | None = None) -> float:
     """A level in the gap of ``values`` that contains 0 (periodic) or below all of them (not periodic).
 
-    With ``above`` (not periodic), the gap above all of them instead, up to ``length``.
+    With ``gap`` (``(lo, hi)``, not periodic), in that gap instead (:func:`_other_level`).
 
     Every level of the gap gives the same loop class, hence the same period
     of eq. (6), as long as the point it puts on one curve is off the other.
@@ -594,12 +594,14 @@ def _free_level(values: np.ndarray, period: float | None, length: float, on=None
     adversarial review), or raised a DegenerateError that depended only on
     which vertex a closed curve started at.  Where every level of the gap
     lies on the other curve, a DegenerateError is raised
-    (:func:`boundary_conditions` then tries an interval's other end).
+    (:func:`boundary_conditions` then tries an interval's other gaps).
     """
-    if len(values) == 0:
+    if gap is not None:
+        lo, hi = gap
+    elif len(values) == 0:
         lo, hi = 0.0, length
     elif period is None:
-        lo, hi = (float(np.max(values)), length) if above else (0.0, float(np.min(values)))
+        lo, hi = 0.0, float(np.min(values))
     else:  # the gap across 0: from the largest value to the smallest one a period on (values lie in [0, period))
         lo, hi = float(np.max(values)), period + float(np.min(values))
     levels = lo + (hi - lo) * (np.arange(_LEVEL_SAMPLES) + 0.5) / _LEVEL_SAMPLES
@@ -614,12 +616,40 @@ def _free_level(values: np.ndarray, period: float | None, length: float, on=None
     if not room[best] > _CLEAR * scale:
         # every level of the gap lies where the curves touch: the winding number would be rounding's choice
         raise DegenerateError(
-            f"the deformed polyline of component {on.name!r} runs along that of component {other.name!r} over the "
-            "whole of each stretch between its crossings and its ends (or around the circle), touching it without "
-            "crossing: the topological condition of this pair cannot be read off a point of it. Move one of the "
-            "two curves off the other along one of those stretches."
+            f"the deformed polyline of component {on.name!r} runs along that of component {other.name!r}, touching "
+            "it without crossing, wherever the topological condition of this pair could be read (every stretch "
+            "from its ends to its crossings and between them, or around the circle): it cannot be read off a "
+            "point of it. Move one of the two curves off the other along one of those stretches."
         )
     return float(levels[best])
+
+
+def _other_level(domain: Domain, values: np.ndarray, length: float, on, other) -> tuple[float, int]:
+    """A level of a cylinder's interval beyond some of its crossings, off the circle: ``(level, sum of their s)``.
+
+    For :func:`boundary_conditions` when every level below the crossings
+    lies on the circle (an interval that starts on it, a contact the
+    perturbation may count as a crossing at 0).  Where the interval's point
+    crosses the circle, the winding number jumps by ``-s`` (``s = sign
+    det(phi_i', phi_j')``, ``i`` the interval), so the period below all the
+    crossings is the one read at the level plus the sum of the ``s`` of the
+    crossings below it.  The gaps tried: beyond the last crossing, then
+    between crossings, the widest first (an interval with both ends on the
+    circle, a code review).  The DegenerateError of the first stands where
+    none has a level off the circle.
+    """
+    order = np.argsort(values, kind="stable")
+    v = values[order]
+    s = (domain.signs * (1 if on is domain.comps[0] else -1))[order]
+    lows = np.concatenate([[0.0], v])  # gap k runs from lows[k] to highs[k], with the first k crossings below it
+    highs = np.concatenate([v, [length]])
+    first = None
+    for k in [len(v)] + sorted(range(1, len(v)), key=lambda k: (lows[k] - highs[k], k)):
+        try:
+            return _free_level(values, None, length, on, other, gap=(lows[k], highs[k])), int(s[:k].sum())
+        except DegenerateError as err:
+            first = first or err
+    raise first
 
 
 #: levels tried by _free_level for the one farthest from the other curve
@@ -664,18 +694,13 @@ def boundary_conditions(domain: Domain) -> dict[str, Any]:
         on = other = None
         if kind == "cylinder":  # the interval's point at the level, away from the circle
             on, other = (cj, ci) if ci.closed else (ci, cj)
-        below = 0
         try:
-            v0 = _free_level(st[:, 1], None, V, on, other)
+            v0, below = _free_level(st[:, 1], None, V, on, other), 0
         except DegenerateError:
             if kind == "annulus":
                 raise
-            # the interval's first stretch lies on the circle (it starts on it: a contact at its end, which the
-            # perturbation may count as a crossing at 0): read the period beyond its last crossing, where its
-            # point has crossed the circle at every crossing, the winding number jumping by -s each time
-            # (s = sign det(phi_i', phi_j'), i the interval): the period below is that one plus the sum of s
-            v0 = _free_level(st[:, 1], None, V, on, other, above=True)
-            below = int(domain.signs.sum()) * (1 if on is ci else -1)
+            # the interval's first stretch lies on the circle: read the period beyond some of its crossings
+            v0, below = _other_level(domain, st[:, 1], V, on, other)
         level = domain.to_param(np.array([[0.0, v0]]))[0][1 if domain.basis[1, 1] else 0]
         return {"flux": -sign * (_period(domain, level) + below)}
     # torus: seam s = 0 is the loop v -> (s0, v); seam v = 0 the loop s -> (s, v0)

@@ -849,9 +849,10 @@ def _nodal_loop() -> direct.Scene:
 
 
 def test_a_nodal_loop_against_an_independent_solver(monkeypatch):
-    """``J = 0.3593470217976719`` to 1.7e-10, from a solver written apart from ``direct`` (a review at stop 49:
-    its own crossings, segment lengths by Simpson's rule between vertex lines, 32-neighbour routes, Newton and
-    Richardson). The curve to the diagonal comes out straight along ``(1, -1)``, the loop being nearly symmetric,
+    """``J = 0.3593470217976719`` to 1.7e-10, from a solver written apart from ``direct`` (``validation/
+    independent.py``, a review at stop 49: its own crossings, segment lengths by Simpson's rule between vertex
+    lines, 32-neighbour routes, Newton and Richardson; ``python validation/independent_check.py nodal_loop``,
+    about two minutes). The curve to the diagonal comes out straight along ``(1, -1)``, the loop being nearly symmetric,
     and gets four bent starts (``_bent_starts``): two of them, 14 % above it, were refined to 3,099 vertices, 10.4
     of 10.5 s; they are given up after their third level now (``refine_many``'s ``above``), the same value."""
     import sys

@@ -307,9 +307,10 @@ def test_a_start_made_from_a_refined_curve_keeps_its_own_size():
 
 
 @pytest.mark.parametrize("seed", [3, 11])
-def test_a_curve_clearly_above_its_bound_is_given_up_after_its_third_level(seed):
+def test_a_curve_clearly_above_its_bound_is_given_up(seed):
     """``refine_many(..., above=...)``: a curve whose extrapolated length lies above its bound by more than ten
-    estimates and 1 % stops at that level, with that level's estimate, which covers the full refinement; a bound
+    estimates and 1 % at two levels in a row stops there, with that level's estimate (which covers the full
+    refinement on these curves, a start from their own grid routes; not in general: see ``_given_up``); a bound
     above the length, or none, changes nothing, bit for bit (the further starts of ``direct.starts``)."""
     dom, met, jobs = _jobs(random_crossing_scene(seed, min_crossings=2, max_crossings=4))
     full = refine_many(dom, met, jobs, tol=1e-7)
@@ -319,8 +320,9 @@ def test_a_curve_clearly_above_its_bound_is_given_up_after_its_third_level(seed)
     for rp, g, b in zip(full, given, below):
         assert g.length > b and g.upper >= g.length
         assert abs(g.length - rp.length) <= g.error_estimate
+        assert g.segments <= rp.segments
         fewer += g.segments < rp.segments
-    assert fewer == len(jobs)
+    assert fewer >= len(jobs) - 1  # one may reach tol at the level it would be given up at
     mixed = [None if k % 2 else 2.0 * rp.length for k, rp in enumerate(full)]
     for rp, same in zip(full, refine_many(dom, met, jobs, tol=1e-7, above=mixed)):
         assert (same.length, same.upper, same.error_estimate) == (rp.length, rp.upper, rp.error_estimate)
