@@ -1977,10 +1977,8 @@ def _level_estimate(c: _Curve) -> tuple[float, float, float]:
 #: a curve refined with a bound (refine_many's ``above``) is given up once its extrapolated length lies above the
 #: bound by more than this many times its estimate ...
 _GIVE_UP_ESTIMATES = 10.0
-#: ... and by more than this fraction of the bound
+#: ... and by more than this fraction of the bound ...
 _GIVE_UP_GAP = 1e-2
-
-
 #: ... at this many levels in a row
 _GIVE_UP_LEVELS = 2
 

@@ -237,7 +237,10 @@ def _restarted(domain: Domain, metric: Metric, starts: dict, held: dict, tol: fl
     of ``validation/default_tol.py`` (seeds 100 to 299) at ``tol=1e-3`` it
     widened 69 of 175 estimates, none beyond ``tol`` (seed 187 the most,
     4.7e-4 to 5.1e-4 relative); at ``tol=1e-5`` (seeds 100 to 149) 11 of
-    47, seed 118 from 8.0e-6 to 1.0e-5 (a warning).
+    47, seed 118 from 8.0e-6 to 1.0e-5 (a warning).  A start is refined
+    only until it lies clearly above ``(1 + _CORNER_FAMILY)`` times the
+    curve held (``refine_many``'s ``above``), beyond which it counts for
+    nothing here: the far bent starts of a nodal loop (stop 49).
     """
     starts = {k: jobs for k, jobs in starts.items() if jobs}
     if not starts:
