@@ -1098,8 +1098,8 @@ def test_a_start_beside_a_corner_keeps_the_estimate_of_the_curve_it_replaces(mon
     X = np.array([[0.0, 0.0], [1.0, 1.0]])
     held = {"k": RefinedPath(X, 2.0, 2.0, 1e-4, 1)}
     for lengths, want in (((1.9999, 2.5), (1.9999, 1e-4)), ((2.1, 2.5), None)):
-        monkeypatch.setattr(direct.starts, "refine_many", lambda domain, metric, jobs, tol, atol, lengths=lengths: [
-            RefinedPath(X, L, L, 1e-7, 1) for L in lengths])
+        monkeypatch.setattr(direct.starts, "refine_many", lambda domain, metric, jobs, tol, atol, above=None,
+                            lengths=lengths: [RefinedPath(X, L, L, 1e-7, 1) for L in lengths])
         out = direct.starts._restarted(None, None, {"k": [GeodesicJob(X), GeodesicJob(X)]}, held, 1e-3, 0.0)
         assert (None if not out else (out["k"].length, out["k"].error_estimate)) == want
 
