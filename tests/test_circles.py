@@ -824,7 +824,7 @@ def test_a_cylinders_condition_read_in_every_gap_of_the_interval(seed, monkeypat
     """The flux of eq. (6) on a cylinder read in any gap between the interval's crossings, or beyond the last
     (the winding number there, plus the sum of the signs ``s`` of the crossings below), is the one read before
     its first crossing, on random polylines across random polygons (0 to 12 crossings), in either order: what
-    makes the readings of an interval that starts on the circle sound (``_other_level``)."""
+    makes the readings of an interval that starts on the circle sound (``_interval_level``)."""
     rng = np.random.default_rng(seed)
     n = int(rng.integers(3, 9))
     a = 2 * np.pi * np.sort(rng.uniform(0, 1, n))
