@@ -1817,14 +1817,14 @@ def coarse_geodesic(
 class _Curve:
     """The state of one curve during :func:`refine_many`."""
 
-    def __init__(self, job: GeodesicJob, X, modes, fine: bool = False):
+    def __init__(self, job: GeodesicJob, X, modes, fine: bool = False, above: float | None = None):
         self.job, self.X, self.modes = job, X, modes
         self.fine = fine  # its route is as fine as a last level already: its levels go down (_levels_down)
         self.history: list[float] = []  # the length reached at each level
         self.length = 0.0  # the length after the latest round of the current level
         self.gains: list[float] = []  # what each round of the current level gained (see _remaining_gain)
         self.result: RefinedPath | None = None
-        self.above: float | None = None  # a length it need not be refined below (refine_many's ``above``)
+        self.above = above  # a length it need not be refined below (refine_many's ``above``)
         self.clear = 0  # the levels in a row at which it lay clearly above ``above`` (see _given_up)
 
 
@@ -2236,8 +2236,8 @@ def refine_many(
     curves = []
     for k, (job, route) in enumerate(zip(jobs, routes)):
         X, modes = _initial_polyline(domain, route, start, job.start_ground, job.end_ground, job.closed)
-        curves.append(_Curve(job, X, modes, fine=len(route) - 1 >= max_segments))
-        curves[-1].above = None if above is None else above[k]
+        curves.append(_Curve(job, X, modes, fine=len(route) - 1 >= max_segments,
+                             above=None if above is None else above[k]))
     fine = [c for c in curves if c.fine]
     if fine:
         _levels_down(domain, metric, fine, scale, tol, max_rounds)
