@@ -100,7 +100,7 @@ from .grid import Domain, build_graph
 from .matching import solve as solve_assignment
 from .matching import solve_flow, solve_torus
 from .metric import Metric, MetricName, _breaks, _vertex_params, get_metric
-from .refinement import GeodesicJob, RefinedPath, coarse_geodesics, polyline_lengths, refine_many
+from .refinement import GeodesicJob, RefinedPath, coarse_geodesics, length_rounding, polyline_lengths, refine_many
 from .scene import Scene
 from .scenes import resolve
 from .starts import (
@@ -929,38 +929,21 @@ def _foreseen(missing: list, costs: dict, refined, solve, most: int = 8) -> list
 def _rounding_errors(domain: Domain, metric: Metric, curves: list) -> tuple[np.ndarray, np.ndarray]:
     """Bounds on the rounding errors of each curve's length: ``(of r, of the sums)``, each ``(m,)``, length units.
 
-    ``r = phi(x1) - phi(x2)`` is formed from the deformed coordinates of the
-    domain's two components, as large as ``scale``, so it carries an absolute error of a few ``eps * scale``; the
-    length of a curve weighs ``|r|`` to the metric's ``order``.  Along a curve
-    on which ``|r|`` grows to ``R``, the relative error of the length is
-    then about ``(order + 1) delta / R``; this takes ``2 (order + 1) eps scale
-    / R`` (``delta = 2 eps scale``).  Negligible for a scene at the origin
-    (about 1e-15), it is what is left of the digits when the scene lies far
-    from the origin (``cross60`` translated by 1e12: 1.8e-4 off, estimate
-    2.6e-6 relative, before this term) or a crossing lies very close to the
-    end of a component (``cross(1e-12, 1, 1, 1)`` with ``g``: 1.5e-4 off; an
-    adversarial review).  ``order`` is the metric's; a ``G``-family metric of
-    another ``h`` counts as order 4.  Zero for ``euclid``, which does not
-    weigh ``|r|``.  Every curve also gets ``_ARITHMETIC`` of its length for
-    the rounding of the sums themselves (the right angle with ``g``, computed
-    exactly but for rounding: 5.6e-16 off with an estimate of 2.8e-17 before
-    these terms).
+    Of ``r = phi(x1) - phi(x2)``: :func:`direct.refinement.length_rounding`,
+    ``2 (order + 1) eps scale / R`` of the length along a curve on which
+    ``|r|`` grows to ``R``.  Negligible for a scene at the origin (about
+    1e-15), it is what is left of the digits when the scene lies far from
+    the origin (``cross60`` translated by 1e12: 1.8e-4 off, estimate 2.6e-6
+    relative, before this term) or a crossing lies very close to the end of
+    a component (``cross(1e-12, 1, 1, 1)`` with ``g``: 1.5e-4 off; an
+    adversarial review).  Every curve also gets ``_ARITHMETIC`` of its
+    length for the rounding of the sums themselves (the right angle with
+    ``g``, computed exactly but for rounding: 5.6e-16 off with an estimate of
+    2.8e-17 before these terms).
     """
     lengths = np.array([max(float(c[3]), 0.0) if np.isfinite(c[3]) else 0.0 for c in curves])
     arithmetic = _ARITHMETIC * lengths
-    out = np.zeros(len(curves))
-    order = float(metric.order) if float(metric.order) > 0 else (0.0 if metric.name == "euclid" else 4.0)
-    if not order > 0:
-        return out, arithmetic
-    ci, cj = domain.comps
-    scale = max(float(np.abs(np.asarray(c.deformed, dtype=float)).max()) for c in (ci, cj))
-    eps = np.finfo(float).eps
-    for k, c in enumerate(curves):
-        path = np.asarray(c[2], dtype=float)
-        if not lengths[k] > 0:
-            continue
-        reach = float(np.linalg.norm(ci.phi(path[:, 0]) - cj.phi(path[:, 1]), axis=-1).max())
-        out[k] = lengths[k] * (min(1.0, 2.0 * (order + 1.0) * eps * scale / reach) if reach > 0 else 1.0)
+    out = np.array([length_rounding(domain, metric, c[2], L) if L > 0 else 0.0 for c, L in zip(curves, lengths)])
     return out, arithmetic
 
 

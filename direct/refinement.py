@@ -43,7 +43,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from functools import cached_property
+from functools import cached_property, partial
 
 import numpy as np
 import scipy.sparse as sp
@@ -56,7 +56,8 @@ from . import parallel
 from .grid import Domain, deformed_speeds
 from .metric import Metric, _breaks, _vertex_params, segment_lengths
 
-__all__ = ["refine", "refine_many", "coarse_geodesic", "coarse_geodesics", "RefinedPath", "GeodesicJob"]
+__all__ = ["refine", "refine_many", "coarse_geodesic", "coarse_geodesics", "RefinedPath", "GeodesicJob",
+           "length_rounding"]
 
 
 
@@ -1936,17 +1937,53 @@ def _grade_and_measure(domain: Domain, metric: Metric, curves: list[_Curve], sca
         c.length = L
 
 
-def _finish(c: _Curve, tol: float, atol: float, last: bool = True) -> bool:
+def length_rounding(domain: Domain, metric: Metric, path: np.ndarray, length: float) -> float:
+    """A bound on the rounding error of the length ``length`` of the polyline ``path`` (length units).
+
+    ``r = phi(x1) - phi(x2)`` is formed from the deformed coordinates of the
+    domain's two components, as large as ``scale``, so it carries an absolute
+    error of a few ``eps * scale``; the length of a curve weighs ``|r|`` to
+    the metric's ``order``.  Along a curve on which ``|r|`` grows to ``R``,
+    the relative error of the length is then about ``(order + 1) delta / R``;
+    this takes ``2 (order + 1) eps scale / R`` (``delta = 2 eps scale``), at
+    most the whole length.  A ``G``-family metric of another ``h`` counts as
+    order 4; ``euclid``, which does not weigh ``|r|``, gives 0.  The
+    estimate of :func:`direct.penalty` adds it to every curve's
+    (``penalty._rounding_errors``), and :func:`refine_many` stops doubling a
+    curve whose levels differ by less than it: they measure rounding there,
+    not the discretization.
+    """
+    order = float(metric.order) if float(metric.order) > 0 else (0.0 if metric.name == "euclid" else 4.0)
+    if not (order > 0 and length > 0):
+        return 0.0
+    ci, cj = domain.comps
+    scale = max(float(np.abs(np.asarray(c.deformed, dtype=float)).max()) for c in (ci, cj))
+    path = np.asarray(path, dtype=float)
+    reach = float(np.linalg.norm(ci.phi(path[:, 0]) - cj.phi(path[:, 1]), axis=-1).max())
+    return length * (min(1.0, 2.0 * (order + 1.0) * np.finfo(float).eps * scale / reach) if reach > 0 else 1.0)
+
+
+def _finish(c: _Curve, tol: float, atol: float, last: bool = True, rounding=None) -> bool:
     """Set ``c.result`` from its levels' lengths ``c.history`` if they meet ``tol`` (or ``last``): whether it did.
 
     Richardson: with an error ~ n^-2, ``L_n - L_inf ~ (L_{n/2} - L_n) / 3``.
     The estimate is the whole last difference, three times that
-    correction: the first levels are not always asymptotic.
+    correction: the first levels are not always asymptotic.  ``rounding``
+    (``(X, L) -> float``, :func:`length_rounding` of the domain) also stops
+    a curve whose estimate lies below the rounding of its own length: its
+    levels differ by rounding there, and further ones would measure nothing
+    (the result's estimate, which :func:`direct.penalty` adds that rounding
+    to, then exceeds ``tol`` and warns).
     """
     Ln, diff, estimate = _level_estimate(c)
     # three levels at least: the change between the first two is often not yet in the asymptotic range (measured:
     # 3.8e-3 off at tol 1e-3 after two), and the third checks it through the ratio
-    if not ((estimate <= max(tol * abs(Ln), atol) and len(c.history) >= 3) or last):
+    met = estimate <= max(tol * abs(Ln), atol)
+    if not met and rounding is not None and len(c.history) >= 3:
+        # an interval along a triangle's edge, its curves where the metric vanishes (J about 2e-31): levels of
+        # 1.1e-31, 1.7e-31, 1.4e-31, ... went on to 1,856 segments, and its corner starts alike (19 s)
+        met = estimate <= rounding(c.X, Ln)
+    if not ((met and len(c.history) >= 3) or last):
         return False
     # the extrapolation stays within [0, Ln]: Ln is the exact length of a curve of the class
     c.result = RefinedPath(c.X, min(max(Ln - diff / 3.0, 0.0), Ln), Ln, estimate, len(c.X) - 1)
@@ -2245,6 +2282,7 @@ def refine_many(
             _finish(c, tol, atol)
     live = [c for c in curves if not c.fine]
     cap = _doubling_cap(max_segments, tol)
+    rounding = partial(length_rounding, domain, metric)
     n = start
     while live:
         _grade_and_measure(domain, metric, live, scale)
@@ -2252,7 +2290,7 @@ def refine_many(
         nxt = []
         for c in live:
             c.history.append(c.length)  # the length of the last round's polyline
-            if len(c.history) >= 2 and _finish(c, tol, atol, last=n >= cap or _given_up(c)):
+            if len(c.history) >= 2 and _finish(c, tol, atol, last=n >= cap or _given_up(c), rounding=rounding):
                 continue
             if len(c.history) == 1 and c.length == 0.0:
                 c.result = RefinedPath(c.X, 0.0, 0.0, 0.0, len(c.X) - 1)
