@@ -11,6 +11,12 @@ crossings, random sines.  ``direct.penalty(scene, tol=1e-5)`` (what ``direct pen
 against the reference ``J`` and its bound.  A row is ``SILENT`` when the difference exceeds the sum of
 ``error_estimate`` and the reference's bound without a ``ToleranceWarning``, ``over tol`` when it exceeds
 ``tol`` relative.  Writes ``independent_check.csv`` beside this file.
+
+``--metric g --power 2`` (or any ``--metric``/``--power``: ``g`` with ``p``, ``G`` with ``q``) runs instead a subset
+of the cases (:data:`UNEVEN_CASES`, or those named) with UNEVEN references (:func:`uneven`: reference arclength
+1 to 3 times the deformed along each curve, a straight line cut into 24 uneven segments first), for
+``direct.penalty(scene, metric=..., power=..., tol=1e-5)`` against ``independent.solve(..., refs=..., metric=...,
+power=...)``, and writes ``independent_check_<metric><power>.csv`` (e.g. ``independent_check_g2.csv``).
 """
 
 from __future__ import annotations
@@ -126,7 +132,42 @@ def scene(case: str) -> direct.Scene:
     return direct.Scene(tuple(comps), name=case)
 
 
-def check(case: str) -> dict:
+UNEVEN_CASES = ["nodal_loop", "sine_line", "close_wiggle", "two_arcs", "trochoid", "s_curve_line", "near_touch"]
+
+
+def uneven(P: np.ndarray, k: int, pieces: int = 24) -> tuple[np.ndarray, np.ndarray]:
+    """``(deformed, reference)`` for the ``k``-th polyline ``P``: the reference a horizontal line at height ``10 k``
+    whose segments are ``f`` times the deformed ones, ``f = 2 + cos(3 pi u + 0.9 k + 0.3)`` at the segment's
+    middle (``u`` the normalized deformed arclength), so between 1 and 3 along the curve. A polyline of one
+    segment is first cut into ``pieces`` uneven segments (the same curve)."""
+    P = np.asarray(P, float)
+    if len(P) == 2:
+        i = np.arange(1, pieces)
+        t = np.r_[0.0, (i + 0.37 * np.sin(1.7 * i)) / pieces, 1.0]
+        P = P[0] + t[:, None] * (P[1] - P[0])
+    seg = np.hypot(*np.diff(P, axis=0).T)
+    u = (np.cumsum(seg) - 0.5 * seg) / seg.sum()
+    f = 2.0 + np.cos(3 * np.pi * u + 0.9 * k + 0.3)
+    s = np.concatenate([[0.0], np.cumsum(seg * f)])
+    return P, np.c_[s, np.full_like(s, 10.0 * k)]
+
+
+def uneven_polylines(case: str) -> tuple[list, list]:
+    """The deformed polylines of a case and their uneven references (:func:`uneven`)."""
+    pairs = [uneven(P, k) for k, P in enumerate(polylines(case))]
+    return [P for P, _ in pairs], [R for _, R in pairs]
+
+
+def uneven_scene(case: str) -> direct.Scene:
+    polys, refs = uneven_polylines(case)
+    return direct.Scene(tuple(direct.Component(R, P, name=f"C{k}") for k, (P, R) in enumerate(zip(polys, refs))),
+                        name=case)
+
+
+def check(case: str, metric: str | None = None, power: float | None = None) -> dict:
+    """One case; ``metric``/``power`` given: the uneven run (see the module docstring)."""
+    if metric is not None or power is not None:
+        return _check_uneven(case, metric or "G", power)
     sc = scene(case)
     t0 = time.perf_counter()
     with warnings.catch_warnings(record=True) as caught:
@@ -147,14 +188,48 @@ def check(case: str) -> dict:
             "warned": warned, "verdict": verdict, "seconds_direct": t_direct, "seconds_reference": t_ref}
 
 
+def _check_uneven(case: str, metric: str, power: float | None) -> dict:
+    polys, refs = uneven_polylines(case)
+    sc = uneven_scene(case)
+    t0 = time.perf_counter()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        res = direct.penalty(sc, metric=metric, power=power, tol=TOL)
+    t_direct = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    ref = independent.solve(polys, refs=refs, metric=metric, power=power)
+    t_ref = time.perf_counter() - t0
+    err = abs(res.value - ref["value"])
+    warned = any(issubclass(w.category, direct.ToleranceWarning) for w in caught)
+    verdict = ("SILENT" if err > res.error_estimate + ref["bound"] and not warned
+               else "over tol" if err > TOL * ref["value"] else "ok")
+    return {"case": case, "metric": metric, "power": power, "crossings": len(res.crossings),
+            "reference_crossings": ref["ncross"], "value": res.value, "error_estimate": res.error_estimate,
+            "upper_bound": res.upper_bound, "reference": ref["value"], "reference_bound": ref["bound"],
+            "reference_upper": ref["upper"], "relative_error": err / ref["value"],
+            "error_over_estimate": err / res.error_estimate, "warned": warned,
+            "warnings": "; ".join(f"{w.category.__name__}: {w.message}" for w in caught), "verdict": verdict,
+            "seconds_direct": t_direct, "seconds_reference": t_ref}
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("cases", nargs="*", default=CASES)
-    ap.add_argument("--csv", default=os.path.join(HERE, "independent_check.csv"))
+    ap.add_argument("cases", nargs="*")
+    ap.add_argument("--csv", default=None)
+    ap.add_argument("--metric", choices=("G", "g"), default=None,
+                    help="run the uneven-reference subset with this metric (see the module docstring)")
+    ap.add_argument("--power", type=float, default=None, help="q of G or p of g (default 2)")
     args = ap.parse_args(argv)
+    uneven_run = args.metric is not None or args.power is not None
+    if not args.cases:
+        args.cases = UNEVEN_CASES if uneven_run else CASES
+    if args.csv is None:
+        name = (f"independent_check_{args.metric or 'G'}{2.0 if args.power is None else args.power:g}.csv"
+                if uneven_run else "independent_check.csv")
+        args.csv = os.path.join(HERE, name)
     rows = []
     for case in args.cases:
-        rows.append(check(case))
+        rows.append(check(case, args.metric, args.power) if uneven_run else check(case))
         r = rows[-1]
         print(f"{case:24s} {r['verdict']:8s} error {r['relative_error']:.1e} relative, {r['error_over_estimate']:.3f} "
               f"of the estimate; direct {r['seconds_direct']:.1f} s, reference {r['seconds_reference']:.0f} s",
