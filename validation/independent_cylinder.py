@@ -1,9 +1,9 @@
 """An independent reference for ``J^G`` (``G = |y1 - y2|^4 Id``, Example 14) of one open polyline crossing one
 closed polyline once: the cylinder ``I x C`` of ``M x M`` (a review at stop 50).
 
-The solver part imports nothing of ``direct``; the code between the ``copied`` markers is copied verbatim from
-``validation/independent.py`` at commit 18b5470 (exact polyline lengths by Simpson between vertex lines, the
-banded damped Newton refinement and Richardson), so that concurrent edits of that file cannot change it.
+The solver part imports nothing of ``direct``; it takes from ``validation/independent.py`` (the open-curve solver)
+its exact polyline lengths (Simpson between vertex lines), its grid stencil, the banded damped Newton refinement and
+Richardson, for ``G`` with ``q = 2``.
 
 Topology (paper, sec. 3.2 eq. (6), the proofs of Prop. 9 and Prop. 11): on the cylinder ``I x C`` an
 irrotational field ``omega`` supported in ``U`` (away from the crossing point and from the two boundary circles
@@ -41,277 +41,21 @@ of the candidates that converged to the same value (within 1e-6 relative).
 from __future__ import annotations
 
 import argparse
-import math
 import os
+import sys
 import time
 import warnings
 
 import numpy as np
-from scipy.optimize import minimize
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import dijkstra
 
-
-# ============================================================================= copied (independent.py, 18b5470)
-class Comp:
-    def __init__(self, P):
-        P = np.asarray(P, float)
-        self.P = P
-        d = np.diff(P, axis=0)
-        self.len = np.hypot(d[:, 0], d[:, 1])
-        assert np.all(self.len > 0)
-        self.u = d / self.len[:, None]
-        self.S = np.concatenate([[0.0], np.cumsum(self.len)])
-        self.L = self.S[-1]
-
-    def idx(self, s):
-        return np.clip(np.searchsorted(self.S, s, side="right") - 1, 0, len(self.len) - 1)
-
-    def at(self, s, k):
-        return self.P[k] + self.u[k] * (s - self.S[k])[..., None]
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 
-def _breaks(x0, x1, S):
-    """flat (seg_id, t) of the crossings of vertex lines S strictly inside each segment x0->x1."""
-    lo = np.minimum(x0, x1)
-    hi = np.maximum(x0, x1)
-    a = np.searchsorted(S, lo, side="right")
-    b = np.searchsorted(S, hi, side="left")
-    cnt = np.maximum(b - a, 0)
-    seg = np.repeat(np.arange(len(x0)), cnt)
-    if len(seg) == 0:
-        return seg, np.zeros(0)
-    start = np.repeat(a, cnt)
-    off = np.arange(len(seg)) - np.repeat(np.cumsum(cnt) - cnt, cnt)
-    k = start + off
-    t = (S[k] - x0[seg]) / (x1[seg] - x0[seg])
-    return seg, t
-
-
-def seg_lengths(X, Y, A: Comp, B: Comp, grad=False):
-    """Exact lengths of segments X[i]->Y[i] in the piece A x B (and gradients wrt X, Y)."""
-    X = np.asarray(X, float)
-    Y = np.asarray(Y, float)
-    m = len(X)
-    s1, t1 = _breaks(X[:, 0], Y[:, 0], A.S)
-    s2, t2 = _breaks(X[:, 1], Y[:, 1], B.S)
-    segs = np.concatenate([np.arange(m), np.arange(m), s1, s2])
-    ts = np.concatenate([np.zeros(m), np.ones(m), t1, t2])
-    o = np.lexsort((ts, segs))
-    segs, ts = segs[o], ts[o]
-    same = segs[1:] == segs[:-1]
-    sid = segs[:-1][same]
-    ta, tb = ts[:-1][same], ts[1:][same]
-    D = Y - X
-    Dn = np.hypot(D[:, 0], D[:, 1])
-    tm = 0.5 * (ta + tb)
-    Pm = X[sid] + tm[:, None] * D[sid]
-    ka = A.idx(Pm[:, 0])
-    kb = B.idx(Pm[:, 1])
-
-    def r_at(t):
-        p = X[sid] + t[:, None] * D[sid]
-        return A.at(p[:, 0], ka) - B.at(p[:, 1], kb)
-
-    ra, rm, rb = r_at(ta), r_at(tm), r_at(tb)
-    fa, fm, fb = (ra * ra).sum(1), (rm * rm).sum(1), (rb * rb).sum(1)
-    w = tb - ta
-    simpson = np.bincount(sid, w * (fa + 4 * fm + fb) / 6.0, minlength=m)
-    L = Dn * simpson
-    if not grad:
-        return L
-    # grad rho = (2 r.u_a, -2 r.u_b), piecewise linear in t
-    ua, ub = A.u[ka], B.u[kb]
-
-    def g(r):
-        return np.stack([2 * (r * ua).sum(1), -2 * (r * ub).sum(1)], 1)
-
-    ga, gm, gb = g(ra), g(rm), g(rb)
-    # int t grad rho dt over [ta,tb], integrand quadratic -> Simpson exact
-    Jt = (w / 6.0)[:, None] * (ta[:, None] * ga + 4 * tm[:, None] * gm + tb[:, None] * gb)
-    Jg = (w / 6.0)[:, None] * (ga + 4 * gm + gb)
-    It = np.zeros((m, 2))
-    Ig = np.zeros((m, 2))
-    np.add.at(It, sid, Jt)
-    np.add.at(Ig, sid, Jg)
-    e = D / np.where(Dn > 0, Dn, 1.0)[:, None]
-    gY = e * simpson[:, None] + Dn[:, None] * It
-    gX = -e * simpson[:, None] + Dn[:, None] * (Ig - It)
-    return L, gX, gY
-
-
-def poly_length(V, A, B, grad=False):
-    V = np.asarray(V, float)
-    if not grad:
-        return seg_lengths(V[:-1], V[1:], A, B).sum()
-    L, gX, gY = seg_lengths(V[:-1], V[1:], A, B, grad=True)
-    G = np.zeros_like(V)
-    G[:-1] += gX
-    G[1:] += gY
-    return L.sum(), G
-
-
-OFFS = []
-for dx in range(-3, 4):
-    for dy in range(-3, 4):
-        if (dx, dy) != (0, 0) and math.gcd(abs(dx), abs(dy)) == 1:
-            OFFS.append((dx, dy))
-assert len(OFFS) == 32
-
-
-def path_nodes(pred, src, t):
-    out = [t]
-    while out[-1] != src:
-        out.append(pred[out[-1]])
-        if out[-1] < 0:
-            return None
-    return out[::-1]
-
-
-def resample(V, m):
-    V = np.asarray(V, float)
-    d = np.r_[0, np.cumsum(np.hypot(*np.diff(V, axis=0).T))]
-    if d[-1] == 0:
-        return np.linspace(V[0], V[-1], m + 1)
-    s = np.linspace(0, d[-1], m + 1)
-    return np.stack([np.interp(s, d, V[:, 0]), np.interp(s, d, V[:, 1])], 1)
-
-
-def refine(pc, V0, end=None, levels=(16, 32, 64, 128, 256, 512), maxiter=500):
-    """Minimize the polyline length with V[0] fixed; V[-1] fixed (end None) or on end boundary.
-    Returns dict with per-level lengths, Richardson value, bound, final polyline."""
-    (lo1, hi1), (lo2, hi2) = pc.boxes()
-    V = resample(V0, levels[0]) if len(V0) - 1 != levels[0] else np.asarray(V0, float)
-    out = []
-    for li in range(len(levels)):
-        if li > 0:
-            Vn = np.empty((2 * len(V) - 1, 2))
-            Vn[0::2] = V
-            Vn[1::2] = 0.5 * (V[:-1] + V[1:])
-            V = Vn
-        V = _opt(pc, V, end, (lo1, hi1, lo2, hi2), maxiter, prepass=(li == 0 and len(V0) - 1 != levels[0]))
-        out.append(poly_length(V, pc.A, pc.B))
-    out = np.array(out)
-    R = (4 * out[1:] - out[:-1]) / 3
-    val = R[-1]
-    bound = max(abs(R[-1] - R[-2]), 1e-15 * abs(val)) if len(R) > 1 else abs(out[-1] - out[-2])
-    # also include a conservative fraction of the last raw change
-    return dict(levels=out, rich=R, value=val, bound=bound, upper=out[-1], V=V)
-
-
-def _opt(pc, V, end, box, maxiter, tolrel=1e-15, prepass=False):
-    """Damped Newton with a banded finite-difference Hessian (6 colours)."""
-    from scipy.linalg import solveh_banded
-
-    lo1, hi1, lo2, hi2 = box
-    n = len(V)
-    mode = None if end is None else end[0]
-    V = V.copy()
-    if mode == "diag":
-        V[-1] = 0.5 * (V[-1, 0] + V[-1, 1])
-    elif end is not None:
-        V[-1, end[1]] = end[2]
-    nin = n - 2
-    nv = 2 * nin + (0 if end is None else 1)
-    lo = np.array(
-        [lo1, lo2] * nin + ([] if end is None else [0.0 if mode == "diag" else (lo2 if end[1] == 0 else lo1)])
-    )
-    hi = np.array(
-        [hi1, hi2] * nin + ([] if end is None else [min(hi1, hi2) if mode == "diag" else (hi2 if end[1] == 0 else hi1)])
-    )
-    # vertex index (1..n-1) and colour of each variable
-    vid = np.r_[np.repeat(np.arange(1, n - 1), 2), [] if end is None else [n - 1]].astype(int)
-    crd = np.r_[np.tile([0, 1], nin), [] if end is None else [0]].astype(int)
-
-    def unpack(z):
-        W = V.copy()
-        W[1:-1] = z[: 2 * nin].reshape(-1, 2)
-        if mode == "diag":
-            W[-1] = z[-1]
-        elif end is not None:
-            W[-1, 1 - end[1]] = z[-1]
-        return W
-
-    def fg(z):
-        W = unpack(z)
-        L, G = poly_length(W, pc.A, pc.B, grad=True)
-        g = G[1:-1].ravel()
-        if mode == "diag":
-            g = np.r_[g, G[-1, 0] + G[-1, 1]]
-        elif end is not None:
-            g = np.r_[g, G[-1, 1 - end[1]]]
-        return L, g
-
-    z = np.clip(
-        np.r_[
-            V[1:-1].ravel(),
-            [] if end is None else [0.5 * (V[-1, 0] + V[-1, 1]) if mode == "diag" else V[-1, 1 - end[1]]],
-        ],
-        lo,
-        hi,
-    )
-    scale = max(hi1 - lo1, hi2 - lo2)
-    if prepass:
-        res = minimize(
-            fg,
-            z,
-            jac=True,
-            method="L-BFGS-B",
-            bounds=list(zip(lo, hi)),
-            options=dict(maxiter=400, maxcor=30, ftol=1e-14, gtol=1e-14),
-        )
-        z = res.x
-    f, g = fg(z)
-    lam = 1e-3 * abs(f) / scale**2 + 1e-300
-    ab_u = 3
-    for _ in range(maxiter):
-        # banded Hessian by coloured central differences
-        eps = 1e-6 * scale
-        Hb = np.zeros((ab_u + 1, nv))  # upper form for solveh_banded
-        for col in range(3):
-            for c in range(2):
-                sel = np.nonzero((vid % 3 == col) & (crd == c))[0]
-                if len(sel) == 0:
-                    continue
-                zp = z.copy()
-                zp[sel] += eps
-                zm = z.copy()
-                zm[sel] -= eps
-                dg = (fg(zp)[1] - fg(zm)[1]) / (2 * eps)
-                # entries (i, j): i within one vertex of the perturbed variable j (unique j per i)
-                vj = {int(vid[j]): j for j in sel}
-                for i in range(nv):
-                    for dv in (-1, 0, 1):
-                        j = vj.get(int(vid[i]) + dv)
-                        if j is not None:
-                            if i <= j and j - i <= ab_u:
-                                Hb[ab_u + i - j, j] += 0.5 * dg[i]
-                            if j <= i and i - j <= ab_u:
-                                Hb[ab_u + j - i, i] += 0.5 * dg[i]
-        improved = False
-        for _ in range(30):
-            Hl = Hb.copy()
-            Hl[ab_u] += lam
-            try:
-                p = -solveh_banded(Hl, g)
-            except np.linalg.LinAlgError:
-                lam *= 10
-                continue
-            zn = np.clip(z + p, lo, hi)
-            fn, gn = fg(zn)
-            if fn < f:
-                improved = True
-                dec = f - fn
-                z, f, g = zn, fn, gn
-                lam = max(lam / 10, 1e-20 * abs(f) / scale**2)
-                break
-            lam *= 10
-        if not improved or dec <= tolrel * abs(f):
-            break
-    return unpack(z)
-
-
-# ============================================================================= end of copied code
+# exact polyline lengths (Simpson between vertex lines), the grid stencil, the banded damped Newton refinement and
+# Richardson: those of the open-curve solver, G with q = 2 (a Strip has its k and nodes)
+from independent import OFFS, Comp, _opt, path_nodes, poly_length, refine, resample, seg_lengths  # noqa: E402
 
 
 # ----------------------------------------------------------------------------- geometry (own)
@@ -406,6 +150,9 @@ PERIODS = 7  # the closed curve unrolled over seven periods; the crossing in the
 
 class Strip:
     """The piece I x C in deformed arclength, C unrolled; the search box around the crossing."""
+
+    k = 2  # G with q = 2: independent.py's refine and _opt read the power and quadrature from the piece
+    nodes = None
 
     def __init__(self, I_def, C_def, crossing, half_width=1.5):
         I_def, C_def = np.asarray(I_def, float), np.asarray(C_def, float)
