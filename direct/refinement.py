@@ -1938,7 +1938,7 @@ def _grade_and_measure(domain: Domain, metric: Metric, curves: list[_Curve], sca
 
 
 def length_rounding(domain: Domain, metric: Metric, path: np.ndarray, length: float) -> float:
-    """A bound on the rounding error of the length ``length`` of the polyline ``path`` (length units).
+    """A bound on the rounding error of the length of a polyline in a pair domain.
 
     ``r = phi(x1) - phi(x2)`` is formed from the deformed coordinates of the
     domain's two components, as large as ``scale``, so it carries an absolute
@@ -1952,6 +1952,24 @@ def length_rounding(domain: Domain, metric: Metric, path: np.ndarray, length: fl
     (``penalty._rounding_errors``), and :func:`refine_many` stops doubling a
     curve whose levels differ by less than it: they measure rounding there,
     not the discretization.
+
+    Parameters
+    ----------
+    domain : Domain
+        The pair domain whose components the parameters refer to.
+    metric : Metric
+        The metric on M x M.
+    path : (k, 2) array_like of float
+        The polyline, in parameters ``(x1, x2)`` (reference arclength).
+    length : float
+        Its length (length units raised to the metric's homogeneity, as
+        :func:`polyline_lengths` gives it).
+
+    Returns
+    -------
+    float
+        The bound, in the units of ``length``: 0 for a length of 0 or for
+        ``euclid``.
     """
     order = float(metric.order) if float(metric.order) > 0 else (0.0 if metric.name == "euclid" else 4.0)
     if not (order > 0 and length > 0):
@@ -1972,8 +1990,8 @@ def _finish(c: _Curve, tol: float, atol: float, last: bool = True, rounding=None
     (``(X, L) -> float``, :func:`length_rounding` of the domain) also stops
     a curve whose estimate lies below the rounding of its own length: its
     levels differ by rounding there, and further ones would measure nothing
-    (the result's estimate, which :func:`direct.penalty` adds that rounding
-    to, then exceeds ``tol`` and warns).
+    (its estimate, to which :func:`direct.penalty` adds that rounding, then
+    exceeds ``tol`` times its length).
     """
     Ln, diff, estimate = _level_estimate(c)
     # three levels at least: the change between the first two is often not yet in the asymptotic range (measured:
@@ -2188,7 +2206,9 @@ def refine_many(
     jobs : list of GeodesicJob
         The routes and how their ends are held.
     tol : float, default 1e-3
-        Relative tolerance of each length.
+        Relative tolerance of each length (a curve whose levels differ by
+        less than the rounding of its length, :func:`length_rounding`, stops
+        there too).
     atol : float, default 0
         Absolute tolerance: a curve much shorter than the others needs no
         relative accuracy of its own.
