@@ -106,18 +106,12 @@ def gauss_nodes(k, nodes=None):
 ODD_NODES = 24
 
 
-def seg_lengths(X, Y, A: Comp, B: Comp, grad=False, k=2, nodes=None):
-    """Exact lengths of segments X[i]->Y[i] in the piece A x B (and gradients wrt X, Y).
+def _pieces(X, Y, A: Comp, B: Comp):
+    """The segments ``X[i] -> Y[i]`` cut at the vertex lines of ``A`` and ``B``.
 
-    The length element is ``|r|^k |dx|`` (``|dx|`` Euclidean in the parameters of ``A`` and ``B``). ``k = 2``
-    with ``nodes`` None is the original Simpson path (exact); any other ``k`` (or ``nodes`` given) integrates
-    each piece between vertex lines by Gauss-Legendre with :func:`gauss_nodes` nodes: exact for even ``k``
-    (``|r|^k`` is then a polynomial of degree ``k`` on a piece), not for odd ``k``.
+    Returns ``(sid, ta, tb, tm, D, Dn, ka, kb)``: each piece's segment, its parameter interval and midpoint along
+    the segment, the segments' displacements and lengths, and the segment of ``A`` and of ``B`` each piece lies on.
     """
-    if k != 2 or nodes is not None:
-        return _seg_lengths_gauss(X, Y, A, B, grad, k, gauss_nodes(k, nodes))
-    X = np.asarray(X, float)
-    Y = np.asarray(Y, float)
     m = len(X)
     s1, t1 = _breaks(X[:, 0], Y[:, 0], A.S)
     s2, t2 = _breaks(X[:, 1], Y[:, 1], B.S)
@@ -132,8 +126,23 @@ def seg_lengths(X, Y, A: Comp, B: Comp, grad=False, k=2, nodes=None):
     Dn = np.hypot(D[:, 0], D[:, 1])
     tm = 0.5 * (ta + tb)
     Pm = X[sid] + tm[:, None] * D[sid]
-    ka = A.idx(Pm[:, 0])
-    kb = B.idx(Pm[:, 1])
+    return sid, ta, tb, tm, D, Dn, A.idx(Pm[:, 0]), B.idx(Pm[:, 1])
+
+
+def seg_lengths(X, Y, A: Comp, B: Comp, grad=False, k=2, nodes=None):
+    """Exact lengths of segments X[i]->Y[i] in the piece A x B (and gradients wrt X, Y).
+
+    The length element is ``|r|^k |dx|`` (``|dx|`` Euclidean in the parameters of ``A`` and ``B``). ``k = 2``
+    with ``nodes`` None is the original Simpson path (exact); any other ``k`` (or ``nodes`` given) integrates
+    each piece between vertex lines by Gauss-Legendre with :func:`gauss_nodes` nodes: exact for even ``k``
+    (``|r|^k`` is then a polynomial of degree ``k`` on a piece), not for odd ``k``.
+    """
+    if k != 2 or nodes is not None:
+        return _seg_lengths_gauss(X, Y, A, B, grad, k, gauss_nodes(k, nodes))
+    X = np.asarray(X, float)
+    Y = np.asarray(Y, float)
+    m = len(X)
+    sid, ta, tb, tm, D, Dn, ka, kb = _pieces(X, Y, A, B)
 
     def r_at(t):
         p = X[sid] + t[:, None] * D[sid]
@@ -177,22 +186,8 @@ def _seg_lengths_gauss(X, Y, A: Comp, B: Comp, grad, k, n, chunk=100000):
         if not grad:
             return np.concatenate(parts)
         return tuple(np.concatenate([p[j] for p in parts]) for j in range(3))
-    s1, t1 = _breaks(X[:, 0], Y[:, 0], A.S)
-    s2, t2 = _breaks(X[:, 1], Y[:, 1], B.S)
-    segs = np.concatenate([np.arange(m), np.arange(m), s1, s2])
-    ts = np.concatenate([np.zeros(m), np.ones(m), t1, t2])
-    o = np.lexsort((ts, segs))
-    segs, ts = segs[o], ts[o]
-    same = segs[1:] == segs[:-1]
-    sid = segs[:-1][same]
-    ta, tb = ts[:-1][same], ts[1:][same]
-    D = Y - X
-    Dn = np.hypot(D[:, 0], D[:, 1])
-    tm = 0.5 * (ta + tb)
+    sid, ta, tb, tm, D, Dn, ka, kb = _pieces(X, Y, A, B)
     w = tb - ta
-    Pm = X[sid] + tm[:, None] * D[sid]
-    ka = A.idx(Pm[:, 0])
-    kb = B.idx(Pm[:, 1])
     xg, wg = np.polynomial.legendre.leggauss(n)
     tq = tm[:, None] + 0.5 * w[:, None] * xg[None, :]  # (pieces, n)
     p1 = X[sid, 0][:, None] + tq * D[sid, 0][:, None]
@@ -345,6 +340,23 @@ for dx in range(-3, 4):
 assert len(OFFS) == 32
 
 
+def stencil_edges(N1: int, N2: int):
+    """``(rows, cols)``: the node pairs of the 32-neighbour stencil (``OFFS``, each edge once) on an ``N1 x N2`` grid
+    of nodes numbered ``i * N2 + j``."""
+    Ii, Jj = np.meshgrid(np.arange(N1), np.arange(N2), indexing="ij")
+    Ii = Ii.ravel()
+    Jj = Jj.ravel()
+    rows, cols = [], []
+    for dx, dy in OFFS:  # 32 offsets, each vectorized over every node
+        if (dx, dy) < (0, 0):
+            continue
+        I2, J2 = Ii + dx, Jj + dy
+        ok = (I2 >= 0) & (I2 < N1) & (J2 >= 0) & (J2 < N2)
+        rows.append(Ii[ok] * N2 + Jj[ok])
+        cols.append(I2[ok] * N2 + J2[ok])
+    return np.concatenate(rows), np.concatenate(cols)
+
+
 class Grid:
     def __init__(self, pc: Piece, n):
         L1, L2 = pc.A.L, pc.B.L
@@ -354,19 +366,7 @@ class Grid:
         self.x = np.linspace(0, L1, self.n1 + 1)
         self.y = np.linspace(0, L2, self.n2 + 1)
         N1, N2 = self.n1 + 1, self.n2 + 1
-        Ii, Jj = np.meshgrid(np.arange(N1), np.arange(N2), indexing="ij")
-        Ii = Ii.ravel()
-        Jj = Jj.ravel()
-        rows, cols = [], []
-        for dx, dy in OFFS:
-            if (dx, dy) < (0, 0):
-                continue
-            I2, J2 = Ii + dx, Jj + dy
-            ok = (I2 >= 0) & (I2 < N1) & (J2 >= 0) & (J2 < N2)
-            rows.append(Ii[ok] * N2 + Jj[ok])
-            cols.append(I2[ok] * N2 + J2[ok])
-        rows = np.concatenate(rows)
-        cols = np.concatenate(cols)
+        rows, cols = stencil_edges(N1, N2)
         XY = self.coords(np.arange(N1 * N2))
         w = seg_lengths(XY[rows], XY[cols], pc.A, pc.B, k=pc.k, nodes=pc.grid_nodes)
         w = np.maximum(w, 1e-300)

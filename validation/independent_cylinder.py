@@ -55,7 +55,16 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 # exact polyline lengths (Simpson between vertex lines), the grid stencil, the banded damped Newton refinement and
 # Richardson: those of the open-curve solver, G with q = 2 (a Strip has its k and nodes)
-from independent import OFFS, Comp, _opt, path_nodes, poly_length, refine, resample, seg_lengths  # noqa: E402
+from independent import (  # noqa: E402
+    Comp,
+    _opt,
+    path_nodes,
+    poly_length,
+    refine,
+    resample,
+    seg_lengths,
+    stencil_edges,
+)
 
 
 # ----------------------------------------------------------------------------- geometry (own)
@@ -195,17 +204,7 @@ class StripGrid:
         self.y = np.arange(st.ylo + offset * h2, st.yhi + 1e-12 * h2, h2)
         self.n2 = len(self.y) - 1
         N1, N2 = self.n1 + 1, self.n2 + 1
-        Ii, Jj = np.meshgrid(np.arange(N1), np.arange(N2), indexing="ij")
-        Ii, Jj = Ii.ravel(), Jj.ravel()
-        rows, cols = [], []
-        for dx, dy in OFFS:
-            if (dx, dy) < (0, 0):
-                continue
-            I2, J2 = Ii + dx, Jj + dy
-            ok = (I2 >= 0) & (I2 < N1) & (J2 >= 0) & (J2 < N2)
-            rows.append(Ii[ok] * N2 + Jj[ok])
-            cols.append(I2[ok] * N2 + J2[ok])
-        rows, cols = np.concatenate(rows), np.concatenate(cols)
+        rows, cols = stencil_edges(N1, N2)
         self.N = N1 * N2
         self.XY = self.coords(np.arange(self.N))
         w = np.concatenate([seg_lengths(self.XY[rows[k:k + chunk]], self.XY[cols[k:k + chunk]], st.A, st.B)
