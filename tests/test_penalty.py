@@ -876,8 +876,8 @@ def test_a_nodal_loop_against_an_independent_solver(monkeypatch):
 @pytest.mark.xfail(strict=True, reason="a known limitation (README, Known limitations; docs/record.md, stop 50): "
                                        "3.7e-6 above J, 3.3 times the estimate, no warning")
 def test_an_s_curve_across_a_line_with_q_3_and_uneven_references_against_an_independent_solver():
-    """``G`` with ``q = 3`` on an S-curve (150 vertices) across a line cut into 24 uneven segments, turned by sqrt 2
-    the reference speeds varying 1:3 along both (a review at stop 50, ``validation/independent_check.py --metric G
+    """``G`` with ``q = 3`` on an S-curve (150 vertices) across a line cut into 24 uneven segments, both turned by
+    sqrt(2) rad, the reference speeds varying 1:3 along both (a review at stop 50, ``validation/independent_check.py --metric G
     --power 3``): the independent solver gives 0.07630157041375207 +- 2.0e-10, and so does ``direct`` with the
     references equal to the deformed arclength (2.7e-10 relative), as Prop. 18 says it must. With the uneven
     references ``direct`` gives 0.0763018532 at ``tol=1e-5``, 3.7e-6 (relative) above, 3.3 times its estimate of
