@@ -877,15 +877,15 @@ def test_a_nodal_loop_against_an_independent_solver(monkeypatch):
                                        "3.7e-6 above J, 3.3 times the estimate, no warning")
 def test_an_s_curve_across_a_line_with_q_3_and_uneven_references_against_an_independent_solver():
     """``G`` with ``q = 3`` on an S-curve (150 vertices) across a line cut into 24 uneven segments, both turned by
-    sqrt(2) rad, the reference speeds varying 1:3 along both (a review at stop 50, ``validation/independent_check.py --metric G
-    --power 3``): the independent solver gives 0.07630157041375207 +- 2.0e-10, and so does ``direct`` with the
-    references equal to the deformed arclength (2.7e-10 relative), as Prop. 18 says it must. With the uneven
-    references ``direct`` gives 0.0763018532 at ``tol=1e-5``, 3.7e-6 (relative) above, 3.3 times its estimate of
-    8.6e-8, without a warning. The curve between the two crossings is the one too long (1.4e-7 in each copy), and
+    sqrt(2) rad, the reference speeds varying 1:3 along both (a review at stop 50, ``validation/independent_check.py
+    --metric G --power 3``): the independent solver gives 0.07630157041375207 +- 2.0e-10, and so does ``direct``
+    with the references equal to the deformed arclength (2.7e-10 relative), as Prop. 18 says it must. With the
+    uneven references ``direct`` gives 0.0763018532 at ``tol=1e-5``, 3.7e-6 (relative) above, 3.3 times its estimate
+    of 8.6e-8, without a warning. The curve between the two crossings is the one too long (1.4e-7 in each copy), and
     it keeps a free vertex 8e-9 from its refraction vertex on a line of the line's component (where the reference
     speed jumps from 0.4646 to 0.5326), 6.9e-4 from where the geodesic crosses that line. Merging that vertex
-    changes nothing; the curve is no minimum at its own resolution (L-BFGS-B with its 390 vertices free goes on
-    down to within 2.1e-7 of the reference's curve): the refinement's moves stop at a point stationary for them, as on
+    changes nothing; the curve is no minimum at its own resolution (L-BFGS-B with its 390 vertices free goes on down
+    to within 2.1e-7 of the reference's curve): the refinement's moves stop at a point stationary for them, as on
     the spiral of ``tests/test_circles.py``. Strict: it fails once the estimate covers the error."""
     def turned(P, th=2.0**0.5):
         c, s = np.cos(th), np.sin(th)
